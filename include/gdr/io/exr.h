@@ -1,0 +1,28 @@
+// OpenEXR I/O for frame buffers: every layer as 32-bit float channels
+// ("color.R", "dx.G", "depth.Y", ...), metadata as string attributes.
+#pragma once
+
+#include <string>
+
+#include "gdr/core/image.h"
+
+namespace gdr {
+
+/// Writes all layers of `fb` (32-bit float, ZIP compression) and its metadata
+/// as string header attributes. Throws RuntimeFailure naming the file on error.
+void write_exr(const std::string& path, const FrameBuffer& fb);
+
+/// Reads every channel of an EXR into layers: "L.R/G/B[/A]" -> layer L with 3
+/// (or 4) channels, "L.Y" or a lone channel -> 1 channel; bare R, G, B (the
+/// usual single-image layout) -> layer "color". String attributes become
+/// metadata. Throws InputError naming the file if missing or malformed.
+FrameBuffer read_exr(const std::string& path);
+
+/// Reads an EXR holding one RGB image (bare R, G, B channels, or a single
+/// layer); throws InputError naming the file if it holds something else.
+Image read_exr_rgb(const std::string& path);
+
+/// Writes one RGB(A) or grey image as a plain single-layer EXR (bare channels).
+void write_exr_image(const std::string& path, const Image& img);
+
+}  // namespace gdr

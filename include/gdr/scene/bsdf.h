@@ -1,0 +1,112 @@
+// BSDF interface. All directions are unit vectors in the local shading frame
+// (z = shading normal) and point away from the surface: wo towards the
+// previous vertex (camera side), wi towards the next one (light side).
+// f and pdf are kept apart: f never includes the cosine, pdf never divides f.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "gdr/core/math.h"
+#include "gdr/scene/texture.h"
+
+namespace gdr {
+
+/// Bit flags describing a BSDF lobe.
+enum LobeFlags : uint32_t {
+    kReflection = 1u << 0,    ///< wi on the same side as wo
+    kTransmission = 1u << 1,  ///< wi on the opposite side
+    kDiffuse = 1u << 2,       ///< roughness 1 (Lambertian)
+    kGlossy = 1u << 3,        ///< microfacet lobe, roughness = GGX alpha
+    kSpecular = 1u << 4,      ///< Dirac delta lobe, roughness 0
+};
+
+/// The result of sampling a BSDF.
+struct BsdfSample {
+    Vec3 wi{0.f};          ///< Sampled direction, local frame.
+    Color f{0.f};          ///< BSDF value (1/sr), without cosine. For delta lobes the weight such that f*|cos wi|/pdf is the throughput.
+    float pdf = 0.f;       ///< Solid-angle pdf of wi including the lobe-selection probability (1/sr); for delta lobes the discrete lobe probability.
+    float eta = 1.f;       ///< Relative index of refraction crossed (eta_wi_side / eta_wo_side); 1 for reflection.
+    uint32_t lobe = 0;     ///< LobeFlags of the sampled lobe.
+    float roughness = 0.f; ///< Roughness of the sampled lobe: 0 delta, GGX alpha for glossy, 1 for diffuse.
+
+    /// True for a Dirac delta lobe (mirror, smooth glass).
+    bool is_delta() const { return (lobe & kSpecular) != 0; }
+};
+
+/// A bidirectional scattering distribution function attached to a material.
+/// Reflective BSDFs are two-sided: a wo below the surface is treated as the
+/// mirror image above it. Dielectrics are oriented: z > 0 is the outside.
+class Bsdf {
+public:
+    virtual ~Bsdf() = default;
+
+    /// Samples wi given wo, a lobe-selection number u_lobe and a direction pair u, all in [0,1).
+    virtual std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float u_lobe, const Vec2& u) const = 0;
+    /// BSDF value of the non-delta lobes (1/sr, no cosine).
+    virtual Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const = 0;
+    /// Solid-angle pdf with which sample() produces wi through the non-delta lobes (1/sr).
+    virtual float pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const = 0;
+    /// For a wi exactly along a delta lobe of wo (mirror or refraction direction):
+    /// that lobe's weight f and discrete probability pdf, as sample() would return
+    /// them; nullopt if the BSDF has no such lobe. Used by half-vector shifts.
+    virtual std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2& uv) const {
+        (void)wo, (void)wi, (void)uv;
+        return std::nullopt;
+    }
+    /// Union of the LobeFlags of all lobes.
+    virtual uint32_t flags() const = 0;
+    /// Directional albedo proxy for auxiliary buffers (unitless RGB in [0,1]).
+    virtual Color albedo(const Vec2& uv) const = 0;
+    /// Smallest roughness of any lobe (0 if a delta lobe exists).
+    virtual float min_roughness() const = 0;
+    /// Relative index of refraction (inside / outside) for dielectrics, 1 otherwise.
+    virtual float eta() const { return 1.f; }
+
+    /// True if the BSDF has only delta lobes.
+    bool is_pure_delta() const { return (flags() & (kDiffuse | kGlossy)) == 0; }
+};
+
+/// Lambertian reflection with albedo texture `kd`.
+std::shared_ptr<Bsdf> make_lambertian(std::shared_ptr<Texture> kd);
+/// Ideal mirror with reflectance r (Fresnel-free, as MTL illum 5).
+std::shared_ptr<Bsdf> make_mirror(const Color& r);
+/// Smooth dielectric interface with relative IOR eta (inside / outside), Fresnel-weighted reflection and refraction.
+std::shared_ptr<Bsdf> make_dielectric(float eta);
+/// Rough conductor: GGX microfacet reflection, alpha roughness, Schlick Fresnel with normal reflectance f0.
+std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha);
+/// Rough dielectric: GGX microfacet reflection and refraction (Walter et al. 2007).
+std::shared_ptr<Bsdf> make_rough_dielectric(float eta, float alpha);
+/// Diffuse + glossy mixture (MTL Kd + Ks): Lambertian kd plus a GGX lobe of
+/// reflectance ks, scaled so that kd + ks <= 1 per channel.
+std::shared_ptr<Bsdf> make_plastic(std::shared_ptr<Texture> kd, const Color& ks, float alpha);
+
+/// Phong exponent -> GGX alpha (alpha = sqrt(2 / (Ns + 2))).
+inline float phong_to_alpha(float ns) { return std::sqrt(2.f / (std::max(ns, 0.f) + 2.f)); }
+
+/// Material description as read from an MTL file (and overridden from a scene file).
+struct MaterialDesc {
+    std::string name;              ///< Material name (for messages).
+    Color kd{0.f}, ks{0.f}, ke{0.f};  ///< Diffuse reflectance, specular reflectance, emitted radiance (W/(m^2 sr)).
+    float ns = 0.f;                ///< Phong exponent.
+    float ni = 1.f;                ///< Index of refraction.
+    float pr = -1.f;               ///< GGX roughness alpha; negative when absent.
+    bool metal = false;            ///< Pm 1: conductor.
+    int illum = 2;                 ///< MTL illumination model.
+    std::string map_kd;            ///< Absolute path of the diffuse texture, or empty.
+};
+
+/// The BSDF for an MTL material, by the conventions of shared/scenes/README.md:
+/// illum 5 mirror, illum 7 dielectric (rough if Pr > 0), Pm 1 rough conductor,
+/// Kd + Ks plastic, Kd only Lambertian.
+std::shared_ptr<Bsdf> bsdf_from_mtl(const MaterialDesc& m);
+
+/// A BSDF of an explicit type for a material description: type is one of
+/// diffuse, mirror, dielectric, roughconductor, roughdielectric, plastic, or
+/// "auto" for the MTL rules of bsdf_from_mtl. Roughness comes from pr, or from
+/// ns where pr is absent. Throws ParameterError for an unknown type.
+std::shared_ptr<Bsdf> bsdf_from_desc(const MaterialDesc& m, const std::string& type);
+
+}  // namespace gdr

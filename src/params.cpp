@@ -1,0 +1,97 @@
+#include "gdr/core/params.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <sstream>
+
+namespace gdr {
+
+std::string to_string(const Params::Value& v) {
+    if (auto b = std::get_if<bool>(&v)) return *b ? "true" : "false";
+    if (auto i = std::get_if<long long>(&v)) return std::to_string(*i);
+    if (auto d = std::get_if<double>(&v)) {
+        std::ostringstream os;
+        os.precision(17);
+        os << *d;
+        return os.str();
+    }
+    return std::get<std::string>(v);
+}
+
+void Params::set_from_text(const std::string& a) {
+    const auto eq = a.find('=');
+    if (eq == std::string::npos || eq == 0)
+        throw ParameterError(context_ + ": expected key=value, got '" + a + "'");
+    const std::string key = a.substr(0, eq), text = a.substr(eq + 1);
+    if (text == "true" || text == "false") return set(key, text == "true");
+    char* end = nullptr;
+    const long long i = std::strtoll(text.c_str(), &end, 10);
+    if (!text.empty() && *end == '\0') return set(key, i);
+    const double d = std::strtod(text.c_str(), &end);
+    if (!text.empty() && *end == '\0') return set(key, d);
+    set(key, text);
+}
+
+void Params::bad_type(const std::string& key, const char* expected) const {
+    throw ParameterError(context_ + ": parameter '" + key + "' must be " + expected + ", got '" +
+                         to_string(values_.at(key)) + "'");
+}
+
+bool Params::get_bool(const std::string& key, bool def) const {
+    auto it = values_.find(key);
+    if (it == values_.end()) return def;
+    used_.insert(key);
+    if (auto b = std::get_if<bool>(&it->second)) return *b;
+    bad_type(key, "true or false");
+}
+
+long long Params::get_int(const std::string& key, long long def) const {
+    auto it = values_.find(key);
+    if (it == values_.end()) return def;
+    used_.insert(key);
+    if (auto i = std::get_if<long long>(&it->second)) return *i;
+    if (auto d = std::get_if<double>(&it->second); d && std::floor(*d) == *d && std::abs(*d) < 9e15)
+        return (long long)*d;
+    bad_type(key, "an integer");
+}
+
+double Params::get_real(const std::string& key, double def) const {
+    auto it = values_.find(key);
+    if (it == values_.end()) return def;
+    used_.insert(key);
+    if (auto d = std::get_if<double>(&it->second)) return *d;
+    if (auto i = std::get_if<long long>(&it->second)) return double(*i);
+    bad_type(key, "a number");
+}
+
+std::string Params::get_string(const std::string& key, const std::string& def) const {
+    auto it = values_.find(key);
+    if (it == values_.end()) return def;
+    used_.insert(key);
+    if (auto s = std::get_if<std::string>(&it->second)) return *s;
+    return to_string(it->second);
+}
+
+std::string Params::get_choice(const std::string& key, const std::string& def,
+                               const std::vector<std::string>& choices) const {
+    const std::string v = get_string(key, def);
+    for (const auto& c : choices)
+        if (c == v) return v;
+    std::string list;
+    for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
+    throw ParameterError(context_ + ": parameter '" + key + "' is '" + v + "', expected one of: " + list);
+}
+
+void Params::check_unused(const std::string& owner) const {
+    for (const auto& [k, v] : values_)
+        if (!used_.count(k))
+            throw ParameterError(context_ + ": unknown parameter '" + k + "' for " + owner);
+}
+
+std::string Params::to_text() const {
+    std::string s;
+    for (const auto& [k, v] : values_) s += k + "=" + to_string(v) + "\n";
+    return s;
+}
+
+}  // namespace gdr
