@@ -1,0 +1,157 @@
+// Image error metrics (see gdr/metrics.h).
+
+#include "gdr/metrics.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "gdr/io/png.h"
+
+namespace gdr {
+namespace {
+
+/// Shape and finiteness checks shared by every metric.
+void check_pair(const Image& img, const Image& ref, const char* metric) {
+    if (!img.same_shape(ref))
+        throw ParameterError(fmt::format("{}: image is {}x{}x{} but reference is {}x{}x{}", metric, img.width(),
+                                         img.height(), img.channels(), ref.width(), ref.height(), ref.channels()));
+    if (img.empty()) throw ParameterError(std::string(metric) + ": images are empty");
+    require_finite(img, std::string(metric) + ": image");
+    require_finite(ref, std::string(metric) + ": reference");
+}
+
+/// Mean over all values of f(x, r), accumulated in double for 4k-sized images.
+template <class F>
+double mean_of(const Image& img, const Image& ref, F f) {
+    const auto& x = img.values();
+    const auto& r = ref.values();
+    double sum = 0;
+    for (size_t i = 0; i < x.size(); ++i) sum += f(double(x[i]), double(r[i]));
+    return sum / double(x.size());
+}
+
+/// Normalised 1D Gaussian taps (radius 5, sigma 1.5); 11x11 = outer product.
+std::vector<double> gaussian_taps() {
+    std::vector<double> t(11);
+    double s = 0;
+    for (int i = 0; i < 11; ++i) s += t[i] = std::exp(-double((i - 5) * (i - 5)) / (2 * 1.5 * 1.5));
+    for (auto& v : t) v /= s;
+    return t;
+}
+
+/// Gaussian blur of a w x h plane, truncated at the border and renormalised
+/// by the in-image weight (separable, so each pass normalises on its own).
+std::vector<double> blur(const std::vector<double>& in, int w, int h, const std::vector<double>& taps) {
+    std::vector<double> tmp(in.size()), out(in.size());
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0, ws = 0;
+            for (int k = -5; k <= 5; ++k) {
+                const int xx = x + k;
+                if (xx < 0 || xx >= w) continue;
+                s += taps[k + 5] * in[size_t(y) * w + xx];
+                ws += taps[k + 5];
+            }
+            tmp[size_t(y) * w + x] = s / ws;
+        }
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            double s = 0, ws = 0;
+            for (int k = -5; k <= 5; ++k) {
+                const int yy = y + k;
+                if (yy < 0 || yy >= h) continue;
+                s += taps[k + 5] * tmp[size_t(yy) * w + x];
+                ws += taps[k + 5];
+            }
+            out[size_t(y) * w + x] = s / ws;
+        }
+    return out;
+}
+
+}  // namespace
+
+double mse(const Image& img, const Image& ref) {
+    check_pair(img, ref, "mse");
+    return mean_of(img, ref, [](double x, double r) { return (x - r) * (x - r); });
+}
+
+double mae(const Image& img, const Image& ref) {
+    check_pair(img, ref, "mae");
+    return mean_of(img, ref, [](double x, double r) { return std::abs(x - r); });
+}
+
+double relmse(const Image& img, const Image& ref, const RelMseOptions& opt) {
+    check_pair(img, ref, "relmse");
+    if (!(opt.eps > 0.f)) throw ParameterError("relmse: eps must be positive, got " + std::to_string(opt.eps));
+    const int c = img.channels();
+    const float* x = img.data();
+    const float* r = ref.data();
+    double sum = 0;
+    for (size_t p = 0; p < img.pixel_count(); ++p) {
+        double grey = 0;
+        for (int k = 0; k < c; ++k) grey += r[p * c + k];
+        grey /= c;
+        for (int k = 0; k < c; ++k) {
+            const double rv = r[p * c + k], d = double(x[p * c + k]) - rv;
+            const double den = (opt.grey_denominator ? grey * grey : rv * rv) + double(opt.eps);
+            sum += d * d / den;
+        }
+    }
+    return sum / double(img.values().size());
+}
+
+double ssim(const Image& img, const Image& ref, const SsimOptions& opt) {
+    check_pair(img, ref, "ssim");
+    const int w = img.width(), h = img.height(), c = img.channels();
+    const size_t n = img.pixel_count();
+    const double C1 = 0.01 * 0.01, C2 = 0.03 * 0.03;  // (K L)^2 with L = 1
+    const auto taps = gaussian_taps();
+    auto map = [&](float v) { return double(opt.srgb ? linear_to_srgb(v) : std::clamp(v, 0.f, 1.f)); };
+
+    double total = 0;
+    std::vector<double> a(n), b(n), aa(n), bb(n), ab(n);
+    for (int k = 0; k < c; ++k) {
+        for (size_t p = 0; p < n; ++p) {
+            a[p] = map(img.data()[p * c + k]);
+            b[p] = map(ref.data()[p * c + k]);
+            aa[p] = a[p] * a[p], bb[p] = b[p] * b[p], ab[p] = a[p] * b[p];
+        }
+        const auto mu_a = blur(a, w, h, taps), mu_b = blur(b, w, h, taps);
+        const auto e_aa = blur(aa, w, h, taps), e_bb = blur(bb, w, h, taps), e_ab = blur(ab, w, h, taps);
+        for (size_t p = 0; p < n; ++p) {
+            const double ma = mu_a[p], mb = mu_b[p];
+            const double va = e_aa[p] - ma * ma, vb = e_bb[p] - mb * mb, cov = e_ab[p] - ma * mb;
+            total += ((2 * ma * mb + C1) * (2 * cov + C2)) / ((ma * ma + mb * mb + C1) * (va + vb + C2));
+        }
+    }
+    return total / double(n * c);
+}
+
+std::string compare_report(const Image& img, const Image& ref) {
+    check_pair(img, ref, "compare");
+    auto mean = [](const Image& im) {
+        double s = 0;
+        for (float v : im.values()) s += v;
+        return s / double(im.values().size());
+    };
+    std::string out;
+    out += fmt::format("size:          {}x{}, {} channels\n", img.width(), img.height(), img.channels());
+    out += fmt::format("mean:          {:.6g} (reference {:.6g}; over pixels and channels)\n", mean(img), mean(ref));
+    out += fmt::format("MSE:           {:.6g} (mean of (x-r)^2 over pixels and channels)\n", mse(img, ref));
+    out += fmt::format("relMSE:        {:.6g} (mean of (x-r)^2/(r^2+0.01) per channel; thesis errata)\n",
+                       relmse(img, ref, RelMseOptions::thesis()));
+    out += fmt::format("relMSE grey:   {:.6g} (mean of (x-r)^2/(mean_c(r)^2+0.001); neural convention)\n",
+                       relmse(img, ref, RelMseOptions::neural()));
+    out += fmt::format("MAE:           {:.6g} (mean of |x-r| over pixels and channels)\n", mae(img, ref));
+    out += fmt::format("SSIM:          {:.6f} (Gaussian 11x11 sigma 1.5, per channel on linear values clamped to "
+                       "[0,1], L=1)\n",
+                       ssim(img, ref));
+    out += fmt::format("SSIM sRGB:     {:.6f} (same, on sRGB-encoded clamped values)\n",
+                       ssim(img, ref, SsimOptions{true}));
+    return out;
+}
+
+}  // namespace gdr
