@@ -1,0 +1,38 @@
+// The subcommands of the `gdr` tool, as library functions so tests can run
+// them. Each returns the process exit code and throws gdr::Error on bad input.
+#pragma once
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace gdr::cli {
+
+/// Dispatches `args` (without the program name) to a subcommand.
+int run(const std::vector<std::string>& args);
+
+/// gdr render SCENE.json [options] -o OUT.exr
+int render(const std::vector<std::string>& args);
+/// gdr info FILE.exr
+int info(const std::vector<std::string>& args);
+
+/// Usage text of the whole tool.
+std::string usage();
+
+/// Command-line scanning helpers shared by the subcommands.
+struct ArgReader {
+    const std::vector<std::string>& args;  ///< All arguments of the subcommand.
+    size_t i = 0;                          ///< Current position.
+    /// True while arguments remain.
+    bool more() const { return i < args.size(); }
+    /// The next argument.
+    const std::string& next() { return args[i++]; }
+    /// The value following option `opt`; throws naming the option if absent.
+    std::string value(const std::string& opt);
+    /// The value of `opt` as an integer (throws naming the option if malformed).
+    long long int_value(const std::string& opt);
+    /// The value of `opt` as a real number (throws naming the option if malformed).
+    double real_value(const std::string& opt);
+};
+
+}  // namespace gdr::cli

@@ -1,0 +1,75 @@
+// Integrator interface, render settings and statistics, the integrator
+// registry, and merging of partial renders.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "gdr/core/image.h"
+#include "gdr/core/params.h"
+#include "gdr/registry.h"
+#include "gdr/scene/scene.h"
+
+namespace gdr {
+
+/// How much to render and how.
+struct RenderSettings {
+    long long spp = 16;            ///< Samples per pixel to take (ignored when time_budget > 0).
+    double time_budget = 0.0;      ///< Wall-clock seconds; > 0 renders whole passes until it is spent.
+    int threads = 0;               ///< Worker threads; 0 = all cores.
+    uint64_t seed = 0;             ///< Sampler seed.
+    long long first_sample = 0;    ///< Index of the first sample per pixel (resuming continues the sequence).
+    /// If set and true, the render stops after the current pass and returns
+    /// what it has (an interrupted render is still a valid, resumable image).
+    const std::atomic<bool>* cancel = nullptr;
+};
+
+/// Progress of a running render, reported from worker threads.
+struct Progress {
+    double fraction = 0.0;        ///< Done fraction in [0,1] (of spp, or of the time budget).
+    uint64_t samples = 0;         ///< Pixel samples finished so far.
+    double seconds = 0.0;         ///< Wall time since the start.
+};
+
+/// Callback receiving progress; must be thread-safe and cheap.
+using ProgressFn = std::function<void(const Progress&)>;
+
+/// What a render did.
+struct RenderStats {
+    double seconds = 0.0;          ///< Wall time of the render.
+    uint64_t samples = 0;          ///< Pixel samples taken (all pixels).
+    uint64_t rays = 0;             ///< Rays cast (intersection + shadow).
+    uint64_t nonfinite = 0;        ///< Samples that were NaN or Inf (dropped as zero).
+    std::vector<std::pair<int, int>> nonfinite_pixels;  ///< First few pixels (x, y) where that happened.
+    long long spp = 0;             ///< Samples per pixel taken in this render.
+};
+
+/// An image-synthesis algorithm. Writes named layers into a FrameBuffer sized
+/// like the camera; colour layers hold radiance (W/(m^2 sr)) per pixel.
+class Integrator {
+public:
+    virtual ~Integrator() = default;
+    /// Renders with the given settings; the buffer is cleared first. Layers are
+    /// means over the samples taken, plus an "spp" metadata entry.
+    virtual RenderStats render(const Scene& scene, const RenderSettings& settings, FrameBuffer& out,
+                               const ProgressFn& progress = {}) = 0;
+    /// The integrator's parameters as "key=value" lines (written to file headers).
+    virtual std::string describe() const = 0;
+};
+
+/// The process-wide integrator registry, with the built-ins registered on first use.
+Registry<Integrator>& integrator_registry();
+/// Adds gdr's built-in integrators (pt, gpt, ...) to a registry.
+void register_builtin_integrators(Registry<Integrator>& r);
+
+/// Combines two renders of the same scene and integrator made with
+/// independent samples: mean layers are averaged weighted by sample counts,
+/// layers whose name ends in "variance" are pooled (per-sample variances).
+/// Both need "spp" metadata; throws ParameterError if they do not match.
+void merge_renders(FrameBuffer& into, const FrameBuffer& other);
+
+}  // namespace gdr

@@ -1,0 +1,25 @@
+// Fixed layout of random-number dimensions along a camera path. Each vertex
+// owns a fixed block, so a path's k-th vertex always consumes the same
+// numbers whatever happened earlier: the precondition of random-replay
+// shifts and of seed sharing between frames.
+#pragma once
+
+#include <cstdint>
+
+namespace gdr::dims {
+
+inline constexpr uint32_t kFilm = 0;         ///< 2 numbers: sub-pixel position.
+inline constexpr uint32_t kFirstVertex = 2;  ///< Start of the per-vertex blocks.
+inline constexpr uint32_t kPerVertex = 8;    ///< Numbers per vertex block.
+
+inline constexpr uint32_t kLightSelect = 0;  ///< 1 number: which emitter triangle.
+inline constexpr uint32_t kLightPoint = 1;   ///< 2 numbers: point on it.
+inline constexpr uint32_t kBsdfLobe = 3;     ///< 1 number: BSDF lobe choice.
+inline constexpr uint32_t kBsdfDir = 4;      ///< 2 numbers: BSDF direction.
+inline constexpr uint32_t kRoulette = 6;     ///< 1 number: Russian roulette.
+inline constexpr uint32_t kClassify = 7;     ///< 1 number: probabilistic vertex classification.
+
+/// First dimension of the block of the vertex at path depth `depth` (1 = first hit).
+constexpr uint32_t vertex(int depth) { return kFirstVertex + uint32_t(depth - 1) * kPerVertex; }
+
+}  // namespace gdr::dims

@@ -1,0 +1,55 @@
+// Pinhole perspective camera with the ordinary look-at convention:
+// image right = normalize(cross(forward, up)), image up = cross(right, forward).
+#pragma once
+
+#include "gdr/core/math.h"
+
+namespace gdr {
+
+/// A ray: origin (scene units), unit direction, and the parametric interval [tmin, tmax].
+struct Ray {
+    Vec3 o{0.f}, d{0.f, 0.f, 1.f};
+    float tmin = 0.f, tmax = kInf;
+};
+
+/// Camera parameters as they appear in scene files.
+struct CameraDesc {
+    Vec3 position{0.f, 0.f, 0.f};  ///< Eye point (scene units).
+    Vec3 target{0.f, 0.f, -1.f};   ///< Point looked at.
+    Vec3 up{0.f, 1.f, 0.f};        ///< Approximate up vector.
+    float fov_deg = 45.f;          ///< Full field of view in degrees along fov_axis.
+    char fov_axis = 'y';           ///< 'x' (horizontal) or 'y' (vertical).
+    int width = 512, height = 512; ///< Resolution in pixels.
+};
+
+/// Pinhole camera; film coordinates are continuous pixel units, (0,0) at the
+/// top-left corner of the top-left pixel, x right, y down.
+class Camera {
+public:
+    Camera() : Camera(CameraDesc{}) {}
+    /// Validates the description (throws ParameterError on a degenerate one).
+    explicit Camera(const CameraDesc& d);
+
+    /// The primary ray through film point `film` (pixel units).
+    Ray generate_ray(const Vec2& film) const {
+        const float sx = (2.f * film.x / float(desc_.width) - 1.f) * tan_half_x_;
+        const float sy = (1.f - 2.f * film.y / float(desc_.height)) * tan_half_y_;
+        return Ray{desc_.position, glm::normalize(forward_ + sx * right_ + sy * up_)};
+    }
+    /// Film point (pixel units) where the direction from the eye through p lands; false if behind the camera.
+    bool project(const Vec3& p, Vec2& film) const;
+    /// Area of the image plane at distance 1 (for importance / pdf conversions), in scene units^2.
+    float film_area_at_unit_distance() const { return 4.f * tan_half_x_ * tan_half_y_; }
+
+    int width() const { return desc_.width; }    ///< Pixels across.
+    int height() const { return desc_.height; }  ///< Pixels down.
+    const CameraDesc& desc() const { return desc_; }  ///< The description it was built from.
+    const Vec3& forward() const { return forward_; }   ///< Unit viewing direction.
+
+private:
+    CameraDesc desc_;
+    Vec3 forward_, right_, up_;
+    float tan_half_x_ = 1.f, tan_half_y_ = 1.f;
+};
+
+}  // namespace gdr

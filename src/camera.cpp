@@ -1,0 +1,36 @@
+#include "gdr/scene/camera.h"
+
+#include "gdr/core/error.h"
+
+namespace gdr {
+
+Camera::Camera(const CameraDesc& d) : desc_(d) {
+    if (d.width <= 0 || d.height <= 0 || d.width > 65536 || d.height > 65536)
+        throw ParameterError("camera: resolution must be positive, got " + std::to_string(d.width) + "x" +
+                             std::to_string(d.height));
+    if (!(d.fov_deg > 0.f && d.fov_deg < 180.f))
+        throw ParameterError("camera: fov must be in (0, 180) degrees, got " + std::to_string(d.fov_deg));
+    if (d.fov_axis != 'x' && d.fov_axis != 'y') throw ParameterError("camera: fov_axis must be 'x' or 'y'");
+    const Vec3 f = d.target - d.position;
+    if (!(glm::length(f) > 0.f)) throw ParameterError("camera: position and target coincide");
+    forward_ = glm::normalize(f);
+    const Vec3 r = glm::cross(forward_, d.up);
+    if (!(glm::length(r) > 1e-6f)) throw ParameterError("camera: up is parallel to the viewing direction");
+    right_ = glm::normalize(r);
+    up_ = glm::cross(right_, forward_);
+    const float t = std::tan(0.5f * d.fov_deg * kPi / 180.f);
+    const float aspect = float(d.width) / float(d.height);
+    if (d.fov_axis == 'x') tan_half_x_ = t, tan_half_y_ = t / aspect;
+    else tan_half_y_ = t, tan_half_x_ = t * aspect;
+}
+
+bool Camera::project(const Vec3& p, Vec2& film) const {
+    const Vec3 v = p - desc_.position;
+    const float z = glm::dot(v, forward_);
+    if (z <= 0.f) return false;
+    const float sx = glm::dot(v, right_) / (z * tan_half_x_), sy = glm::dot(v, up_) / (z * tan_half_y_);
+    film = Vec2((sx + 1.f) * 0.5f * float(desc_.width), (1.f - sy) * 0.5f * float(desc_.height));
+    return true;
+}
+
+}  // namespace gdr

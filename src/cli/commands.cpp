@@ -1,0 +1,55 @@
+#include "gdr/cli/commands.h"
+
+#include <cstdlib>
+
+#include <fmt/core.h>
+
+#include "gdr/core/error.h"
+
+namespace gdr::cli {
+
+std::string ArgReader::value(const std::string& opt) {
+    if (!more()) throw ParameterError("option " + opt + " needs a value");
+    return next();
+}
+
+long long ArgReader::int_value(const std::string& opt) {
+    const std::string v = value(opt);
+    char* end = nullptr;
+    const long long x = std::strtoll(v.c_str(), &end, 10);
+    if (v.empty() || *end) throw ParameterError("option " + opt + " expects an integer, got '" + v + "'");
+    return x;
+}
+
+double ArgReader::real_value(const std::string& opt) {
+    const std::string v = value(opt);
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (v.empty() || *end) throw ParameterError("option " + opt + " expects a number, got '" + v + "'");
+    return x;
+}
+
+std::string usage() {
+    return "usage:\n"
+           "  gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N]\n"
+           "             [--seed S] [--set key=value]... [--resume PREVIOUS.exr] [--exposure STOPS] -o OUT.exr\n"
+           "  gdr info FILE.exr\n"
+           "  gdr list                      (integrators and their parameters)\n";
+}
+
+int list_plugins();
+
+int run(const std::vector<std::string>& args) {
+    if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
+        fmt::print("{}", usage());
+        return args.empty() ? 2 : 0;
+    }
+    const std::vector<std::string> rest(args.begin() + 1, args.end());
+    const std::string& cmd = args[0];
+    if (cmd == "render") return render(rest);
+    if (cmd == "info") return info(rest);
+    if (cmd == "list") return list_plugins();
+    throw ParameterError("unknown command '" + cmd + "'\n" + usage());
+}
+
+}  // namespace gdr::cli

@@ -1,0 +1,203 @@
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <mutex>
+
+#include <fmt/core.h>
+
+#include "gdr/cli/commands.h"
+#include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/exr.h"
+#include "gdr/io/png.h"
+#include "gdr/io/scene_file.h"
+
+namespace gdr::cli {
+
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_sigint(int) { g_interrupted = true; }
+
+// Prints progress: a redrawn bar on a terminal, a plain line every 10% otherwise.
+class ProgressPrinter {
+public:
+    ProgressPrinter() : tty_(isatty(fileno(stderr)) != 0) {}
+    void operator()(const Progress& p) {
+        std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+        if (!lock.owns_lock()) return;
+        const double rate = p.seconds > 0 ? double(p.samples) / p.seconds : 0.0;
+        const double eta = p.fraction > 0 ? p.seconds * (1.0 - p.fraction) / p.fraction : 0.0;
+        if (tty_) {
+            if (p.seconds - last_ < 0.1 && p.fraction < 1.0) return;
+            last_ = p.seconds;
+            const int width = 30, filled = int(p.fraction * width);
+            fmt::print(stderr, "\r[{}{}] {:5.1f}%  {:.2f} M samples/s  ETA {:.1f} s   ", std::string(filled, '#'),
+                       std::string(width - filled, '.'), 100.0 * p.fraction, rate * 1e-6, eta);
+        } else {
+            const int decile = int(p.fraction * 10.0);
+            if (decile <= last_decile_) return;
+            last_decile_ = decile;
+            fmt::print(stderr, "progress {:3d}%  {:.2f} M samples/s  ETA {:.1f} s\n", decile * 10, rate * 1e-6, eta);
+        }
+    }
+    void finish() {
+        if (tty_) fmt::print(stderr, "\n");
+    }
+
+private:
+    std::mutex mutex_;
+    bool tty_;
+    double last_ = -1.0;
+    int last_decile_ = 0;
+};
+
+}  // namespace
+
+int render(const std::vector<std::string>& args) {
+    ArgReader a{args};
+    std::string scene_path, out_path, integrator_name, resume_path;
+    long long spp = -1, seed = -1;
+    double time_budget = 0.0, exposure = 0.0;
+    int threads = 0;
+    std::vector<std::string> sets;
+    while (a.more()) {
+        const std::string opt = a.next();
+        if (opt == "-o" || opt == "--output") out_path = a.value(opt);
+        else if (opt == "--integrator") integrator_name = a.value(opt);
+        else if (opt == "--spp") spp = a.int_value(opt);
+        else if (opt == "--time") time_budget = a.real_value(opt);
+        else if (opt == "--threads") threads = int(a.int_value(opt));
+        else if (opt == "--seed") seed = a.int_value(opt);
+        else if (opt == "--set") sets.push_back(a.value(opt));
+        else if (opt == "--resume") resume_path = a.value(opt);
+        else if (opt == "--exposure") exposure = a.real_value(opt);
+        else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage());
+        else if (scene_path.empty()) scene_path = opt;
+        else throw ParameterError("render: unexpected argument '" + opt + "'");
+    }
+    if (scene_path.empty()) throw ParameterError("render: no scene file given\n" + usage());
+    if (out_path.empty()) throw ParameterError("render: no output given (-o OUT.exr)");
+    if (spp == 0 || spp < -1) throw ParameterError("render: --spp must be positive");
+    if (time_budget < 0.0) throw ParameterError("render: --time must be positive");
+    if (spp > 0 && time_budget > 0.0) throw ParameterError("render: give either --spp or --time, not both");
+    if (threads < 0) throw ParameterError("render: --threads must be >= 0");
+
+    // Resuming continues the previous render's sample sequence, so the merged
+    // image equals one longer render.
+    FrameBuffer previous;
+    if (!resume_path.empty()) {
+        previous = read_exr(resume_path);
+        const auto& m = previous.metadata();
+        for (const char* k : {"spp", "seed", "integrator", "scene"})
+            if (!m.count(k)) throw InputError(resume_path + ": not a gdr render (no '" + std::string(k) + "' entry)");
+    }
+
+    const auto t_load = std::chrono::steady_clock::now();
+    SceneFile sf = load_scene_file(scene_path);
+    const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
+    const std::string name = integrator_name.empty() ? sf.defaults.integrator : integrator_name;
+    Params params = sf.defaults.params;
+    for (const auto& s : sets) params.set_from_text(s);
+    auto integrator = integrator_registry().create(name, params);
+
+    RenderSettings st;
+    st.spp = spp > 0 ? spp : sf.defaults.spp;
+    st.time_budget = time_budget;
+    st.threads = threads;
+    st.seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
+    st.cancel = &g_interrupted;
+    if (!resume_path.empty()) {
+        const auto& m = previous.metadata();
+        if (m.at("integrator") != name)
+            throw InputError(resume_path + ": rendered with integrator '" + m.at("integrator") + "', not '" + name + "'");
+        if (m.count("integrator_params") && m.at("integrator_params") != integrator->describe())
+            throw InputError(resume_path + ": rendered with other integrator parameters:\n" + m.at("integrator_params"));
+        if (seed >= 0 && uint64_t(seed) != std::stoull(m.at("seed")))
+            throw InputError(resume_path + ": rendered with seed " + m.at("seed") + ", not " + std::to_string(seed));
+        st.seed = std::stoull(m.at("seed"));
+        st.first_sample = std::stoll(m.at("first_sample")) + std::stoll(m.at("spp"));
+    }
+
+    const auto& cam = sf.scene->camera();
+    const auto& ss = sf.scene->stats();
+    fmt::print(stderr, "scene {}: {} triangles ({} degenerate skipped), {} emitting, {}x{}, loaded in {:.2f} s\n",
+               scene_path, ss.triangles, ss.degenerate_skipped, ss.emitters, cam.width(), cam.height(), load_s);
+    if (!sf.scene->has_lights()) fmt::print(stderr, "warning: the scene has no emitters; the image will be black\n");
+
+    g_interrupted = false;
+    auto old_handler = std::signal(SIGINT, on_sigint);
+    ProgressPrinter printer;
+    FrameBuffer fb;
+    RenderStats rs = integrator->render(*sf.scene, st, fb, [&](const Progress& p) { printer(p); });
+    printer.finish();
+    std::signal(SIGINT, old_handler);
+
+    auto& meta = fb.metadata();
+    meta["integrator"] = name;
+    meta["scene"] = std::filesystem::absolute(scene_path).string();
+    meta["render_seconds"] = fmt::format("{:.3f}", rs.seconds);
+    meta["time_budget"] = fmt::format("{}", time_budget);
+    meta["gdr_version"] = "0.1.0";
+    meta["interrupted"] = g_interrupted ? "true" : "false";
+    if (!resume_path.empty()) {
+        merge_renders(previous, fb);
+        previous.metadata()["render_seconds"] =
+            fmt::format("{:.3f}", std::stod(previous.metadata().count("render_seconds") ? previous.metadata().at("render_seconds") : "0") + rs.seconds);
+        fb = std::move(previous);
+    }
+    write_exr(out_path, fb);
+    const std::string png = std::filesystem::path(out_path).replace_extension(".png").string();
+    const std::string preview = fb.has("color") ? "color" : fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.names().front();
+    write_png_preview(png, fb.get(preview), float(exposure));
+
+    fmt::print(stderr, "{} {} spp in {:.2f} s: {:.2f} M samples/s, {:.2f} M rays/s\n",
+               g_interrupted ? "interrupted after" : "rendered", rs.spp, rs.seconds,
+               rs.samples / std::max(1e-9, rs.seconds) * 1e-6, rs.rays / std::max(1e-9, rs.seconds) * 1e-6);
+    if (rs.nonfinite) {
+        std::string where;
+        for (auto [x, y] : rs.nonfinite_pixels) where += fmt::format(" ({}, {})", x, y);
+        fmt::print(stderr, "warning: {} NaN/Inf samples were dropped, first at pixels{}\n", rs.nonfinite, where);
+    } else {
+        fmt::print(stderr, "no NaN/Inf samples\n");
+    }
+    fmt::print(stderr, "wrote {} (layers:", out_path);
+    for (const auto& n : fb.names()) fmt::print(stderr, " {}", n);
+    fmt::print(stderr, ") and {} ({})\n", png, preview);
+    return g_interrupted ? 130 : 0;
+}
+
+int info(const std::vector<std::string>& args) {
+    if (args.size() != 1) throw ParameterError("info: expected one EXR file\n" + usage());
+    const FrameBuffer fb = read_exr(args[0]);
+    fmt::print("{}: {}x{}\nlayers:\n", args[0], fb.width(), fb.height());
+    for (const auto& n : fb.names()) {
+        const Image& img = fb.get(n);
+        double mean = 0.0;
+        for (float v : img.values()) mean += v;
+        mean /= std::max<size_t>(1, img.values().size());
+        fmt::print("  {:<22} {} channel{}  mean {:.6g}\n", n, img.channels(), img.channels() > 1 ? "s" : "", mean);
+    }
+    if (!fb.metadata().empty()) {
+        fmt::print("settings:\n");
+        for (const auto& [k, v] : fb.metadata()) {
+            std::string vv = v;
+            for (auto& c : vv)
+                if (c == '\n') c = ' ';
+            fmt::print("  {} = {}\n", k, vv);
+        }
+    }
+    return 0;
+}
+
+int list_plugins() {
+    fmt::print("integrators:\n");
+    for (const auto& n : integrator_registry().names()) fmt::print("  {:<10} {}\n", n, integrator_registry().description(n));
+    return 0;
+}
+
+}  // namespace gdr::cli

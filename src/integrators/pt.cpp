@@ -1,0 +1,138 @@
+// Unidirectional path tracing with next-event estimation and multiple
+// importance sampling (power heuristic) between light and BSDF sampling.
+#include "gdr/integrators/common.h"
+#include "gdr/integrators/path_dims.h"
+#include "gdr/integrators/pt.h"
+#include "gdr/integrators/tiled.h"
+
+namespace gdr {
+
+namespace {
+
+class PathTracer final : public TiledIntegrator {
+public:
+    explicit PathTracer(const Params& p) {
+        max_depth_ = int(p.get_int("max_depth", -1));
+        rr_depth_ = int(p.get_int("rr_depth", 5));
+        nee_ = p.get_bool("nee", true);
+        if (max_depth_ == 0 || max_depth_ < -1) throw ParameterError("pt: max_depth must be -1 (unlimited) or >= 1");
+        if (rr_depth_ < 1) throw ParameterError("pt: rr_depth must be >= 1");
+    }
+
+    std::string describe() const override {
+        return "max_depth=" + std::to_string(max_depth_) + "\nrr_depth=" + std::to_string(rr_depth_) +
+               "\nnee=" + (nee_ ? "true" : "false") + "\n";
+    }
+
+protected:
+    std::vector<SlotSpec> slots() const override {
+        return {{"color", 3, true}, {"albedo", 3, false}, {"normal", 3, false}, {"depth", 1, false}};
+    }
+
+    void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const override {
+        sampler.set_dimension(dims::kFilm);
+        const Vec2 film = Vec2(float(x), float(y)) + sampler.next2d();
+        PathResult r = trace_path(scene, scene.camera().generate_ray(film), sampler, PathOptions{max_depth_, rr_depth_, nee_});
+        rays += r.rays;
+        out[0] = r.radiance.r, out[1] = r.radiance.g, out[2] = r.radiance.b;
+        out[3] = r.albedo.r, out[4] = r.albedo.g, out[5] = r.albedo.b;
+        out[6] = r.normal.x, out[7] = r.normal.y, out[8] = r.normal.z;
+        out[9] = r.depth;
+    }
+
+    void finalize(const Accumulated& acc, FrameBuffer& out) const override {
+        out.set("color", acc.mean_of("color"));
+        out.set("albedo", acc.mean_of("albedo"));
+        out.set("normal", acc.mean_of("normal"));
+        out.set("depth", acc.mean_of("depth"));
+        out.set("variance", acc.variance_of("color"));
+    }
+
+private:
+    int max_depth_ = -1, rr_depth_ = 5;
+    bool nee_ = true;
+};
+
+}  // namespace
+
+PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt) {
+    PathResult r;
+    Color beta(1.f);
+    bool prev_delta = true;  // camera rays see emitters without MIS
+    float prev_pdf_w = 0.f;
+    bool aux_done = false;
+    for (int depth = 1;; ++depth) {
+        SurfaceInteraction si;
+        ++r.rays;
+        if (!scene.intersect(ray, si)) break;
+        if (depth == 1) r.depth = si.t;
+        const Vec3 wo_world = -ray.d;
+
+        if (si.is_emitter()) {
+            const Color le = si.emitted(wo_world);
+            if (!is_black(le)) {
+                float w = 1.f;
+                if (opt.nee && !prev_delta) {
+                    const float cos_l = glm::dot(si.ng, wo_world);
+                    w = power_heuristic(prev_pdf_w, pdf_area_to_solid_angle(scene.light_pdf_a(si.prim), si.t, cos_l));
+                }
+                r.radiance += beta * le * w;
+            }
+        }
+        if (opt.max_depth > 0 && depth >= opt.max_depth) break;
+
+        const Bsdf& bsdf = *si.material->bsdf;
+        const Vec3 wo = si.frame.to_local(wo_world);
+        if (!aux_done && !bsdf.is_pure_delta()) {
+            r.albedo = bsdf.albedo(si.uv);
+            r.normal = si.frame.n;
+            aux_done = true;
+        }
+        sampler.set_dimension(dims::vertex(depth));
+        const float u_light = sampler.next1d();
+        const Vec2 u_point = sampler.next2d();
+        const float u_lobe = sampler.next1d();
+        const Vec2 u_dir = sampler.next2d();
+        const float u_rr = sampler.next1d();
+
+        if (opt.nee && scene.has_lights() && !bsdf.is_pure_delta()) {
+            const LightSample ls = scene.sample_light(si.p, u_light, u_point);
+            const Vec3 d = ls.p - si.p;
+            const float dist = glm::length(d);
+            if (!is_black(ls.radiance) && dist > 0.f) {
+                const Vec3 wi_world = d / dist;
+                const Vec3 wi = si.frame.to_local(wi_world);
+                const Color f = bsdf.eval(wo, wi, si.uv);
+                if (!is_black(f)) {
+                    ++r.rays;
+                    if (scene.visible(si.p, si.ng, ls.p, ls.n)) {
+                        const float pdf_l = pdf_area_to_solid_angle(ls.pdf_a, dist, glm::dot(ls.n, -wi_world));
+                        const float w = power_heuristic(pdf_l, bsdf.pdf(wo, wi, si.uv));
+                        r.radiance += beta * f * abs_cos_theta(wi) * ls.radiance * (w / pdf_l);
+                    }
+                }
+            }
+        }
+
+        const auto bs = bsdf.sample(wo, si.uv, u_lobe, u_dir);
+        if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) break;
+        beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);
+        prev_delta = bs->is_delta();
+        prev_pdf_w = bs->pdf;
+        ray = spawn_ray(si, si.frame.to_world(bs->wi));
+
+        if (depth >= opt.rr_depth) {
+            const float q = roulette_survival(beta);
+            if (u_rr >= q) break;
+            beta /= q;
+        }
+    }
+    return r;
+}
+
+void register_pt(Registry<Integrator>& r) {
+    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee)",
+          [](const Params& p) { return std::make_unique<PathTracer>(p); });
+}
+
+}  // namespace gdr

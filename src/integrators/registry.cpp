@@ -1,0 +1,65 @@
+#include "gdr/integrators/integrator.h"
+#include "gdr/integrators/pt.h"
+
+#include <cmath>
+
+namespace gdr {
+
+void register_builtin_integrators(Registry<Integrator>& r) { register_pt(r); }
+
+Registry<Integrator>& integrator_registry() {
+    static Registry<Integrator> r = [] {
+        Registry<Integrator> reg("integrator");
+        register_builtin_integrators(reg);
+        return reg;
+    }();
+    return r;
+}
+
+static long long spp_of(const FrameBuffer& fb, const char* which) {
+    auto it = fb.metadata().find("spp");
+    if (it == fb.metadata().end()) throw ParameterError(std::string("merge: the ") + which + " render has no 'spp' entry");
+    return std::stoll(it->second);
+}
+
+void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
+    if (into.width() != other.width() || into.height() != other.height())
+        throw ParameterError("merge: renders differ in resolution");
+    const long long na = spp_of(into, "first"), nb = spp_of(other, "second");
+    for (const auto& name : into.names())
+        if (!other.has(name)) throw ParameterError("merge: layer '" + name + "' is missing from the second render");
+    const double n = double(na + nb);
+    // Variances first: pooling needs both means before they are overwritten.
+    for (const auto& name : into.names()) {
+        const bool is_var = name.size() >= 8 && name.compare(name.size() - 8, 8, "variance") == 0;
+        if (!is_var) continue;
+        std::string mean_name = name == "variance" ? (into.has("color") ? "color" : "primal") : name.substr(0, name.size() - 9);
+        Image& va = into.get(name);
+        const Image& vb = other.get(name);
+        const bool has_mean = into.has(mean_name) && into.get(mean_name).same_shape(va);
+        for (size_t i = 0; i < va.values().size(); ++i) {
+            double m2 = double(va.values()[i]) * double(na - 1) + double(vb.values()[i]) * double(nb - 1);
+            if (has_mean) {
+                const double d = double(into.get(mean_name).values()[i]) - double(other.get(mean_name).values()[i]);
+                m2 += d * d * double(na) * double(nb) / n;
+            }
+            va.values()[i] = float(m2 / std::max(1.0, n - 1.0));
+        }
+    }
+    for (const auto& name : into.names()) {
+        const bool is_var = name.size() >= 8 && name.compare(name.size() - 8, 8, "variance") == 0;
+        if (is_var) continue;
+        Image& a = into.get(name);
+        const Image& b = other.get(name);
+        if (!a.same_shape(b)) throw ParameterError("merge: layer '" + name + "' differs in shape");
+        if (name == "spp") {
+            for (size_t i = 0; i < a.values().size(); ++i) a.values()[i] += b.values()[i];
+            continue;
+        }
+        for (size_t i = 0; i < a.values().size(); ++i)
+            a.values()[i] = float((double(a.values()[i]) * na + double(b.values()[i]) * nb) / n);
+    }
+    into.metadata()["spp"] = std::to_string(na + nb);
+}
+
+}  // namespace gdr

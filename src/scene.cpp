@@ -1,0 +1,206 @@
+#include "gdr/scene/scene.h"
+
+#include <algorithm>
+#include <numeric>
+
+#include <embree3/rtcore.h>
+
+#include "gdr/core/error.h"
+
+namespace gdr {
+
+namespace {
+void embree_error(void* user, RTCError code, const char* msg) {
+    // Embree calls this from inside its API; the flag is checked after each call that may fail.
+    auto* last = static_cast<std::string*>(user);
+    *last = "Embree error " + std::to_string(int(code)) + ": " + (msg ? msg : "");
+}
+}  // namespace
+
+Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin)
+    : materials_(std::move(materials)), camera_(camera) {
+    // Validate and compact: non-finite vertices are an error, zero-area triangles are dropped.
+    TriangleMesh m;
+    const bool has_n = !mesh.normals.empty(), has_uv = !mesh.uvs.empty();
+    for (size_t t = 0; t < mesh.size(); ++t) {
+        const Vec3* p = &mesh.positions[3 * t];
+        for (int k = 0; k < 3; ++k)
+            if (!is_finite(p[k]))
+                throw InputError(origin + ": triangle " + std::to_string(t) + " has a non-finite vertex");
+        if (mesh.material_ids[t] >= materials_.size())
+            throw InputError(origin + ": triangle " + std::to_string(t) + " has no material");
+        const Vec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
+        const float len = glm::length(c);
+        if (!(len > 0.f) || !std::isfinite(len)) {
+            stats_.degenerate_skipped++;
+            continue;
+        }
+        for (int k = 0; k < 3; ++k) {
+            m.positions.push_back(p[k]);
+            if (has_n) {
+                const Vec3 n = mesh.normals[3 * t + k];
+                const float nl = glm::length(n);
+                // Missing or broken vertex normals fall back to the face normal.
+                m.normals.push_back(nl > 0.f && std::isfinite(nl) ? n / nl : c / len);
+            }
+            if (has_uv) m.uvs.push_back(is_finite(Vec3(mesh.uvs[3 * t + k], 0.f)) ? mesh.uvs[3 * t + k] : Vec2(0.f));
+        }
+        m.material_ids.push_back(mesh.material_ids[t]);
+    }
+    if (m.size() == 0) throw InputError(origin + ": the scene has no (non-degenerate) triangles");
+    mesh_ = std::move(m);
+    stats_.triangles = mesh_.size();
+
+    Vec3 lo(kInf), hi(-kInf);
+    for (const auto& p : mesh_.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    radius_ = std::max(1e-3f, 0.5f * glm::length(hi - lo));
+
+    static thread_local std::string last_error;
+    last_error.clear();
+    RTCDevice dev = rtcNewDevice("threads=0");
+    if (!dev) throw RuntimeFailure("cannot create an Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    rtc_device_ = dev;
+    rtcSetDeviceErrorFunction(dev, embree_error, &last_error);
+    RTCScene scene = rtcNewScene(dev);
+    rtc_scene_ = scene;
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                              3 * sizeof(float), mesh_.positions.size()));
+    auto* idx = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), mesh_.size()));
+    if (!verts || !idx) {
+        rtcReleaseGeometry(geom);
+        throw RuntimeFailure(origin + ": " + (last_error.empty() ? "Embree buffer allocation failed" : last_error));
+    }
+    for (size_t i = 0; i < mesh_.positions.size(); ++i) {
+        verts[3 * i + 0] = mesh_.positions[i].x;
+        verts[3 * i + 1] = mesh_.positions[i].y;
+        verts[3 * i + 2] = mesh_.positions[i].z;
+        idx[i] = uint32_t(i);
+    }
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(scene, geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(scene);
+    if (!last_error.empty()) throw RuntimeFailure(origin + ": " + last_error);
+    build_lights();
+}
+
+Scene::~Scene() {
+    if (rtc_scene_) rtcReleaseScene(static_cast<RTCScene>(rtc_scene_));
+    if (rtc_device_) rtcReleaseDevice(static_cast<RTCDevice>(rtc_device_));
+}
+
+void Scene::build_lights() {
+    light_pdf_by_prim_.assign(mesh_.size(), 0.f);
+    std::vector<double> power;
+    for (uint32_t t = 0; t < mesh_.size(); ++t) {
+        const Material& mat = materials_[mesh_.material_ids[t]];
+        if (is_black(mat.emission)) continue;
+        const Vec3* p = &mesh_.positions[3 * t];
+        const double area = 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+        const double pw = double(luminance(mat.emission)) * area;
+        if (!(pw > 0.0)) continue;
+        light_tris_.push_back(t);
+        power.push_back(pw);
+    }
+    stats_.emitters = light_tris_.size();
+    const double total = std::accumulate(power.begin(), power.end(), 0.0);
+    double acc = 0.0;
+    light_cdf_.resize(power.size());
+    for (size_t i = 0; i < power.size(); ++i) {
+        acc += power[i];
+        light_cdf_[i] = float(acc / total);
+        const Vec3* p = &mesh_.positions[3 * light_tris_[i]];
+        const double area = 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+        light_pdf_by_prim_[light_tris_[i]] = float(power[i] / total / area);
+    }
+    if (!light_cdf_.empty()) light_cdf_.back() = 1.f;
+}
+
+bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
+    RTCRayHit rh;
+    rh.ray.org_x = ray.o.x, rh.ray.org_y = ray.o.y, rh.ray.org_z = ray.o.z;
+    rh.ray.dir_x = ray.d.x, rh.ray.dir_y = ray.d.y, rh.ray.dir_z = ray.d.z;
+    rh.ray.tnear = ray.tmin, rh.ray.tfar = ray.tmax;
+    rh.ray.time = 0.f, rh.ray.mask = 0xffffffffu, rh.ray.id = 0, rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersect1(static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+
+    const uint32_t t = rh.hit.primID;
+    const float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.f - b1 - b2;
+    const Vec3* p = &mesh_.positions[3 * t];
+    si.p = b0 * p[0] + b1 * p[1] + b2 * p[2];
+    si.t = rh.ray.tfar;
+    si.prim = t;
+    si.ng = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+    Vec3 ns = si.ng;
+    if (!mesh_.normals.empty()) {
+        const Vec3* n = &mesh_.normals[3 * t];
+        const Vec3 v = b0 * n[0] + b1 * n[1] + b2 * n[2];
+        const float l = glm::length(v);
+        if (l > 0.f) ns = v / l;
+        // Shading normals on the other side of the face than ng would let light leak.
+        if (glm::dot(ns, si.ng) < 0.f) ns = -ns;
+    }
+    si.frame = Frame(ns);
+    if (!mesh_.uvs.empty()) {
+        const Vec2* uv = &mesh_.uvs[3 * t];
+        si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
+    } else {
+        si.uv = Vec2(b1, b2);
+    }
+    si.material = &materials_[mesh_.material_ids[t]];
+    return true;
+}
+
+bool Scene::occluded(const Ray& ray) const {
+    RTCRay r;
+    r.org_x = ray.o.x, r.org_y = ray.o.y, r.org_z = ray.o.z;
+    r.dir_x = ray.d.x, r.dir_y = ray.d.y, r.dir_z = ray.d.z;
+    r.tnear = ray.tmin, r.tfar = ray.tmax;
+    r.time = 0.f, r.mask = 0xffffffffu, r.id = 0, r.flags = 0;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcOccluded1(static_cast<RTCScene>(rtc_scene_), &ctx, &r);
+    return r.tfar < 0.f;
+}
+
+bool Scene::visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1) const {
+    const Vec3 d = p1 - p0;
+    const Vec3 o = offset_ray_origin(p0, n0, d);
+    const Vec3 e = offset_ray_origin(p1, n1, -d);
+    const Vec3 v = e - o;
+    const float dist = glm::length(v);
+    if (!(dist > 0.f)) return true;
+    return !occluded(Ray{o, v / dist, 0.f, dist * (1.f - 1e-4f)});
+}
+
+LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
+    LightSample ls;
+    if (light_tris_.empty()) return ls;
+    const size_t i = std::min(size_t(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u_sel) - light_cdf_.begin()),
+                              light_tris_.size() - 1);
+    const uint32_t t = light_tris_[i];
+    const Vec3* p = &mesh_.positions[3 * t];
+    // Uniform point on the triangle (square-root parameterisation).
+    const float su = std::sqrt(u.x);
+    const float b0 = 1.f - su, b1 = u.y * su;
+    ls.p = b0 * p[0] + b1 * p[1] + (1.f - b0 - b1) * p[2];
+    ls.n = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+    ls.prim = t;
+    ls.pdf_a = light_pdf_by_prim_[t];
+    const Material& mat = materials_[mesh_.material_ids[t]];
+    ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? mat.emission : Color(0.f);
+    return ls;
+}
+
+float Scene::light_pdf_a(uint32_t prim) const { return prim < light_pdf_by_prim_.size() ? light_pdf_by_prim_[prim] : 0.f; }
+
+}  // namespace gdr

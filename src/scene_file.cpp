@@ -1,0 +1,336 @@
+#include "gdr/io/scene_file.h"
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <nlohmann/json.hpp>
+#include <tiny_obj_loader.h>
+
+#include "gdr/core/error.h"
+
+namespace gdr {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+[[noreturn]] void fail(const std::string& file, const std::string& what) { throw InputError(file + ": " + what); }
+
+void check_keys(const std::string& file, const std::string& where, const json& obj, const std::set<std::string>& allowed) {
+    if (!obj.is_object()) fail(file, where + " must be an object");
+    for (auto it = obj.begin(); it != obj.end(); ++it)
+        if (!allowed.count(it.key())) {
+            std::string list;
+            for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+            fail(file, "unknown key '" + it.key() + "' in " + where + " (expected: " + list + ")");
+        }
+}
+
+float get_number(const std::string& file, const json& j, const std::string& key) {
+    if (!j.is_number()) fail(file, "'" + key + "' must be a number");
+    return j.get<float>();
+}
+
+Vec3 get_vec3(const std::string& file, const json& j, const std::string& key) {
+    if (j.is_number()) return Vec3(j.get<float>());
+    if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() || !j[2].is_number())
+        fail(file, "'" + key + "' must be an array of 3 numbers");
+    return Vec3(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
+}
+
+CameraDesc parse_camera(const std::string& file, const json& j) {
+    CameraDesc c;
+    json src = j;
+    if (j.contains("file")) {
+        const fs::path cam = fs::path(file).parent_path() / j["file"].get<std::string>();
+        std::ifstream in(cam);
+        if (!in) fail(file, "camera file '" + cam.string() + "' not found");
+        json base;
+        try {
+            base = json::parse(in);
+        } catch (const json::exception& e) {
+            fail(cam.string(), std::string("malformed JSON: ") + e.what());
+        }
+        for (auto it = j.begin(); it != j.end(); ++it)
+            if (it.key() != "file") base[it.key()] = it.value();
+        src = base;
+        if (src.contains("fov_deg")) src["fov"] = src["fov_deg"], src.erase("fov_deg");
+        src.erase("forward"), src.erase("note");
+    }
+    check_keys(file, "camera", src, {"position", "target", "up", "fov", "fov_axis", "width", "height"});
+    if (src.contains("position")) c.position = get_vec3(file, src["position"], "camera.position");
+    if (src.contains("target")) c.target = get_vec3(file, src["target"], "camera.target");
+    if (src.contains("up")) c.up = get_vec3(file, src["up"], "camera.up");
+    if (src.contains("fov")) c.fov_deg = get_number(file, src["fov"], "camera.fov");
+    if (src.contains("fov_axis")) {
+        const std::string a = src["fov_axis"].is_string() ? src["fov_axis"].get<std::string>() : "";
+        if (a != "x" && a != "y") fail(file, "'camera.fov_axis' must be \"x\" or \"y\"");
+        c.fov_axis = a[0];
+    }
+    if (src.contains("width")) c.width = int(get_number(file, src["width"], "camera.width"));
+    if (src.contains("height")) c.height = int(get_number(file, src["height"], "camera.height"));
+    return c;
+}
+
+Mat4 parse_transform(const std::string& file, const json& j) {
+    check_keys(file, "transform", j, {"matrix", "translate", "rotate", "scale"});
+    if (j.contains("matrix")) {
+        if (j.size() != 1) fail(file, "transform: 'matrix' cannot be combined with other keys");
+        const json& m = j["matrix"];
+        if (!m.is_array() || m.size() != 16) fail(file, "'transform.matrix' must be 16 numbers (row-major)");
+        Mat4 r(1.f);
+        for (int i = 0; i < 16; ++i) r[i % 4][i / 4] = get_number(file, m[i], "transform.matrix");
+        return r;
+    }
+    Mat4 r(1.f);
+    if (j.contains("translate")) r = glm::translate(r, get_vec3(file, j["translate"], "transform.translate"));
+    if (j.contains("rotate")) {
+        const json& a = j["rotate"];
+        if (!a.is_array() || a.size() != 4) fail(file, "'transform.rotate' must be [axis x, y, z, degrees]");
+        const Vec3 axis(get_number(file, a[0], "rotate"), get_number(file, a[1], "rotate"), get_number(file, a[2], "rotate"));
+        if (!(glm::length(axis) > 0.f)) fail(file, "'transform.rotate' has a zero axis");
+        r = glm::rotate(r, glm::radians(get_number(file, a[3], "rotate")), glm::normalize(axis));
+    }
+    if (j.contains("scale")) r = glm::scale(r, get_vec3(file, j["scale"], "transform.scale"));
+    return r;
+}
+
+// Overrides of a material from the scene file, applied to the MTL description.
+struct Override {
+    std::string type = "auto";
+    json fields;
+};
+
+MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Override& o) {
+    const json& j = o.fields;
+    const std::string where = "materials." + m.name;
+    check_keys(file, where, j, {"type", "kd", "ks", "ke", "alpha", "ns", "eta", "metal", "map_kd"});
+    if (j.contains("kd")) m.kd = get_vec3(file, j["kd"], where + ".kd");
+    if (j.contains("ks")) m.ks = get_vec3(file, j["ks"], where + ".ks");
+    if (j.contains("ke")) m.ke = get_vec3(file, j["ke"], where + ".ke");
+    if (j.contains("alpha")) m.pr = get_number(file, j["alpha"], where + ".alpha");
+    if (j.contains("ns")) m.ns = get_number(file, j["ns"], where + ".ns"), m.pr = j.contains("alpha") ? m.pr : -1.f;
+    if (j.contains("eta")) m.ni = get_number(file, j["eta"], where + ".eta");
+    if (j.contains("metal")) m.metal = j["metal"].get<bool>();
+    if (j.contains("map_kd")) {
+        const std::string t = j["map_kd"].get<std::string>();
+        m.map_kd = t.empty() ? "" : (fs::path(file).parent_path() / t).string();
+    }
+    return m;
+}
+
+}  // namespace
+
+void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
+                   const std::map<std::string, Override>* overrides, const std::string& scene_file,
+                   std::set<std::string>* used_overrides) {
+    if (!fs::exists(path)) throw InputError(path + ": file not found");
+    tinyobj::ObjReaderConfig cfg;
+    cfg.triangulate = true;
+    cfg.vertex_color = false;
+    cfg.mtl_search_path = fs::path(path).parent_path().string();
+    tinyobj::ObjReader reader;
+    if (!reader.ParseFromFile(path, cfg)) {
+        std::string e = reader.Error();
+        while (!e.empty() && (e.back() == '\n' || e.back() == '\r')) e.pop_back();
+        throw InputError(path + ": cannot parse OBJ: " + (e.empty() ? "unknown error" : e));
+    }
+    // tinyobjloader reports problems such as a missing MTL only as warnings; a
+    // missing material file would silently turn every surface grey, so it is an error.
+    const std::string warn = reader.Warning();
+    if (warn.find("not found") != std::string::npos && warn.find(".mtl") != std::string::npos)
+        throw InputError(path + ": " + warn.substr(0, warn.find('\n')));
+    const auto& attrib = reader.GetAttrib();
+    const auto& shapes = reader.GetShapes();
+    const auto& mtls = reader.GetMaterials();
+
+    const uint32_t base = uint32_t(materials.size());
+    const fs::path dir = fs::path(path).parent_path();
+    for (const auto& mt : mtls) {
+        MaterialDesc d;
+        d.name = mt.name;
+        d.kd = Color(mt.diffuse[0], mt.diffuse[1], mt.diffuse[2]);
+        d.ks = Color(mt.specular[0], mt.specular[1], mt.specular[2]);
+        d.ke = Color(mt.emission[0], mt.emission[1], mt.emission[2]);
+        d.ns = float(mt.shininess);
+        d.ni = float(mt.ior);
+        d.pr = mt.roughness > 0 ? float(mt.roughness) : -1.f;
+        d.metal = mt.metallic > 0.5;
+        d.illum = mt.illum;
+        if (!mt.diffuse_texname.empty()) d.map_kd = (dir / mt.diffuse_texname).string();
+        std::string type = "auto";
+        if (overrides) {
+            auto it = overrides->find(mt.name);
+            if (it != overrides->end()) {
+                d = apply_override(scene_file, d, it->second);
+                type = it->second.type;
+                used_overrides->insert(mt.name);
+            }
+        }
+        Material m;
+        m.name = d.name;
+        m.emission = d.ke;
+        try {
+            m.bsdf = type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, type);
+        } catch (const Error& e) {
+            throw InputError(path + ": material '" + d.name + "': " + e.what());
+        }
+        materials.push_back(std::move(m));
+    }
+    // Faces without a material get a neutral grey diffuse one.
+    uint32_t default_id = UINT32_MAX;
+
+    const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
+    const bool flip = glm::determinant(glm::mat3(xf)) < 0.f;  // mirroring transforms reverse the winding
+    const size_t nv = attrib.vertices.size() / 3;
+    for (const auto& sh : shapes) {
+        const auto& ind = sh.mesh.indices;
+        for (size_t f = 0; f < sh.mesh.num_face_vertices.size(); ++f) {
+            if (sh.mesh.num_face_vertices[f] != 3) continue;  // triangulated by the reader
+            const tinyobj::index_t* c = &ind[3 * f];
+            bool has_n = true, has_uv = true;
+            Vec3 p[3], n[3];
+            Vec2 uv[3];
+            for (int k = 0; k < 3; ++k) {
+                const int vi = c[k].vertex_index;
+                if (vi < 0 || size_t(vi) >= nv)
+                    throw InputError(path + ": face " + std::to_string(f) + " of '" + sh.name + "' references a missing vertex");
+                const Vec3 v(attrib.vertices[3 * vi], attrib.vertices[3 * vi + 1], attrib.vertices[3 * vi + 2]);
+                if (!is_finite(v))
+                    throw InputError(path + ": vertex " + std::to_string(vi + 1) + " is not a finite number");
+                p[k] = Vec3(xf * Vec4(v, 1.f));
+                if (c[k].normal_index >= 0 && size_t(3 * c[k].normal_index + 2) < attrib.normals.size())
+                    n[k] = nxf * Vec3(attrib.normals[3 * c[k].normal_index], attrib.normals[3 * c[k].normal_index + 1],
+                                      attrib.normals[3 * c[k].normal_index + 2]);
+                else
+                    has_n = false;
+                if (c[k].texcoord_index >= 0 && size_t(2 * c[k].texcoord_index + 1) < attrib.texcoords.size())
+                    uv[k] = Vec2(attrib.texcoords[2 * c[k].texcoord_index], attrib.texcoords[2 * c[k].texcoord_index + 1]);
+                else
+                    has_uv = false, uv[k] = Vec2(0.f);
+            }
+            if (flip) std::swap(p[1], p[2]), std::swap(n[1], n[2]), std::swap(uv[1], uv[2]);
+            if (!has_n) {
+                // Flat faces carry their face normal so one mesh can mix smooth and flat parts.
+                const Vec3 fn = glm::cross(p[1] - p[0], p[2] - p[0]);
+                n[0] = n[1] = n[2] = fn;
+            }
+            const int mid = sh.mesh.material_ids.empty() ? -1 : sh.mesh.material_ids[f];
+            uint32_t id;
+            if (mid >= 0 && size_t(mid) < mtls.size()) {
+                id = base + uint32_t(mid);
+            } else {
+                if (default_id == UINT32_MAX) {
+                    default_id = uint32_t(materials.size());
+                    materials.push_back(Material{"(default)", make_lambertian(make_constant_texture(Color(0.5f))), Color(0.f)});
+                }
+                id = default_id;
+            }
+            for (int k = 0; k < 3; ++k) {
+                mesh.positions.push_back(p[k]);
+                mesh.normals.push_back(n[k]);
+                mesh.uvs.push_back(uv[k]);
+            }
+            mesh.material_ids.push_back(id);
+        }
+    }
+}
+
+void load_obj(const std::string& path, const Mat4& transform, TriangleMesh& mesh, std::vector<Material>& materials) {
+    load_obj_impl(path, transform, mesh, materials, nullptr, "", nullptr);
+}
+
+static SceneFile load_scene_file_impl(const std::string& path);
+
+SceneFile load_scene_file(const std::string& path) {
+    try {
+        return load_scene_file_impl(path);
+    } catch (const json::exception& e) {
+        // Type errors (a string where a number belongs) surface here.
+        throw InputError(path + ": " + e.what());
+    }
+}
+
+static SceneFile load_scene_file_impl(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw InputError(path + ": file not found");
+    json j;
+    try {
+        j = json::parse(in);
+    } catch (const json::exception& e) {
+        throw InputError(path + ": malformed JSON: " + e.what());
+    }
+    check_keys(path, "the scene", j, {"camera", "meshes", "materials", "render", "description"});
+    if (!j.contains("camera")) fail(path, "missing 'camera'");
+    if (!j.contains("meshes") || !j["meshes"].is_array() || j["meshes"].empty())
+        fail(path, "'meshes' must be a non-empty array");
+
+    SceneFile sf;
+    sf.path = path;
+    const CameraDesc cd = parse_camera(path, j["camera"]);
+    Camera camera;
+    try {
+        camera = Camera(cd);
+    } catch (const Error& e) {
+        fail(path, e.what());
+    }
+
+    std::map<std::string, Override> overrides;
+    if (j.contains("materials")) {
+        if (!j["materials"].is_object()) fail(path, "'materials' must be an object keyed by material name");
+        for (auto it = j["materials"].begin(); it != j["materials"].end(); ++it) {
+            Override o;
+            o.fields = it.value();
+            if (o.fields.contains("type")) {
+                if (!o.fields["type"].is_string()) fail(path, "materials." + it.key() + ".type must be a string");
+                o.type = o.fields["type"].get<std::string>();
+            }
+            overrides[it.key()] = o;
+        }
+    }
+
+    TriangleMesh mesh;
+    std::vector<Material> materials;
+    std::set<std::string> used;
+    const fs::path dir = fs::path(path).parent_path();
+    for (const auto& m : j["meshes"]) {
+        if (m.is_string()) {
+            load_obj_impl((dir / m.get<std::string>()).string(), Mat4(1.f), mesh, materials, &overrides, path, &used);
+            continue;
+        }
+        check_keys(path, "meshes[]", m, {"file", "transform"});
+        if (!m.contains("file") || !m["file"].is_string()) fail(path, "every mesh needs a 'file'");
+        const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
+        load_obj_impl((dir / m["file"].get<std::string>()).string(), xf, mesh, materials, &overrides, path, &used);
+    }
+    for (const auto& [name, o] : overrides)
+        if (!used.count(name)) fail(path, "materials: no mesh has a material named '" + name + "'");
+
+    if (j.contains("render")) {
+        const json& r = j["render"];
+        check_keys(path, "render", r, {"integrator", "spp", "seed", "params"});
+        if (r.contains("integrator")) sf.defaults.integrator = r["integrator"].get<std::string>();
+        if (r.contains("spp")) sf.defaults.spp = r["spp"].get<long long>();
+        if (r.contains("seed")) sf.defaults.seed = r["seed"].get<long long>();
+        if (r.contains("params") && !r["params"].is_object()) fail(path, "'render.params' must be an object");
+    }
+    sf.defaults.params = Params(path);
+    if (j.contains("render") && j["render"].contains("params")) {
+        for (auto it = j["render"]["params"].begin(); it != j["render"]["params"].end(); ++it) {
+            const json& v = it.value();
+            if (v.is_boolean()) sf.defaults.params.set(it.key(), v.get<bool>());
+            else if (v.is_number_integer()) sf.defaults.params.set(it.key(), v.get<long long>());
+            else if (v.is_number()) sf.defaults.params.set(it.key(), v.get<double>());
+            else if (v.is_string()) sf.defaults.params.set(it.key(), v.get<std::string>());
+            else fail(path, "render.params." + it.key() + " must be a boolean, number or string");
+        }
+    }
+    sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
+    return sf;
+}
+
+}  // namespace gdr
