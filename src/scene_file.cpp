@@ -192,7 +192,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
         for (size_t f = 0; f < sh.mesh.num_face_vertices.size(); ++f) {
             if (sh.mesh.num_face_vertices[f] != 3) continue;  // triangulated by the reader
             const tinyobj::index_t* c = &ind[3 * f];
-            bool has_n = true, has_uv = true;
+            bool has_n = true;
             Vec3 p[3], n[3];
             Vec2 uv[3];
             for (int k = 0; k < 3; ++k) {
@@ -211,7 +211,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
                 if (c[k].texcoord_index >= 0 && size_t(2 * c[k].texcoord_index + 1) < attrib.texcoords.size())
                     uv[k] = Vec2(attrib.texcoords[2 * c[k].texcoord_index], attrib.texcoords[2 * c[k].texcoord_index + 1]);
                 else
-                    has_uv = false, uv[k] = Vec2(0.f);
+                    uv[k] = Vec2(0.f);
             }
             if (flip) std::swap(p[1], p[2]), std::swap(n[1], n[2]), std::swap(uv[1], uv[2]);
             if (!has_n) {

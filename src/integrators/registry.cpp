@@ -1,11 +1,15 @@
 #include "gdr/integrators/integrator.h"
+#include "gdr/integrators/gpt.h"
 #include "gdr/integrators/pt.h"
 
 #include <cmath>
 
 namespace gdr {
 
-void register_builtin_integrators(Registry<Integrator>& r) { register_pt(r); }
+void register_builtin_integrators(Registry<Integrator>& r) {
+    register_pt(r);
+    register_gpt(r);
+}
 
 Registry<Integrator>& integrator_registry() {
     static Registry<Integrator> r = [] {

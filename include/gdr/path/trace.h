@@ -1,0 +1,26 @@
+// Tracing and recording camera paths for path-space integrators.
+#pragma once
+
+#include "gdr/core/sampler.h"
+#include "gdr/path/vertex.h"
+
+namespace gdr {
+
+/// Limits of a recorded camera path.
+struct TraceOptions {
+    int max_depth = -1;  ///< Longest path in segments (camera to light); -1 unlimited.
+    int rr_depth = 5;    ///< Vertex index from which Russian roulette may end the path.
+};
+
+/// Traces the camera ray through `film` and records every vertex with its
+/// light sample and sampled direction. Vertex k draws its numbers from the
+/// dims::vertex(k) block of `sampler` (the film position is not drawn here).
+void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, const TraceOptions& opt,
+                       CameraPath& path);
+
+/// Throughput f*|cos|/(pdf*survival) of the scattering at vertex k (unitless RGB).
+inline Color scatter_weight(const PathVertex& x) {
+    return x.bs.f * (abs_cos_theta(x.bs.wi) / (x.bs.pdf * x.rr_survival));
+}
+
+}  // namespace gdr

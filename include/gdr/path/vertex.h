@@ -1,0 +1,63 @@
+// Path-space building blocks: recorded path vertices, camera paths, and the
+// measure conversions between solid angle and area that shift mappings need.
+#pragma once
+
+#include <vector>
+
+#include "gdr/core/math.h"
+#include "gdr/scene/scene.h"
+
+namespace gdr {
+
+/// Geometry factor between two points: |cos_a| |cos_b| / distance^2 (1/m^2);
+/// cosines are taken against the unit normals n_a and n_b.
+inline double geometry_term(const Vec3& a, const Vec3& n_a, const Vec3& b, const Vec3& n_b) {
+    const Vec3d d = Vec3d(b) - Vec3d(a);
+    const double d2 = glm::dot(d, d);
+    if (!(d2 > 0.0)) return 0.0;
+    const Vec3d w = d / std::sqrt(d2);
+    return std::abs(glm::dot(w, Vec3d(n_a))) * std::abs(glm::dot(w, Vec3d(n_b))) / d2;
+}
+
+/// Solid-angle density (1/sr) -> area density (1/m^2) at a point at distance
+/// `dist` whose surface makes |cos| `cos_at_point` with the incoming direction.
+inline double pdf_w_to_a(double pdf_w, double dist, double cos_at_point) {
+    return dist > 0.0 ? pdf_w * std::abs(cos_at_point) / (dist * dist) : 0.0;
+}
+
+/// Area density (1/m^2) -> solid-angle density (1/sr); the inverse of pdf_w_to_a.
+inline double pdf_a_to_w(double pdf_a, double dist, double cos_at_point) {
+    return std::abs(cos_at_point) > 0.0 ? pdf_a * dist * dist / std::abs(cos_at_point) : 0.0;
+}
+
+/// A next-event (light) sample taken at a path vertex.
+struct LightConnection {
+    bool valid = false;       ///< A sample was drawn (vertex had a non-delta lobe, scene has lights).
+    LightSample light;        ///< The point on the emitter (area measure, shared by offset paths).
+    bool visible = false;     ///< Segment vertex -> light point unblocked (only tested when radiance > 0).
+};
+
+/// One recorded vertex x_k of a camera path (k >= 1; x_0 is the pinhole).
+struct PathVertex {
+    SurfaceInteraction si;      ///< Hit point, frames, material.
+    Vec3 wo{0.f};               ///< Local direction towards x_{k-1}.
+    Color emitted{0.f};         ///< Radiance emitted from x_k towards x_{k-1} (W/(m^2 sr)).
+    LightConnection nee;        ///< Light sample drawn at x_k.
+    bool scattered = false;     ///< A direction to x_{k+1} was sampled (bs valid).
+    BsdfSample bs;              ///< The sampled direction wi (local), f, pdf (solid angle), lobe, eta.
+    float u_lobe = 0.f;         ///< Random number that chose the lobe (for replay).
+    Vec2 u_dir{0.f};            ///< Random numbers that chose the direction (for replay).
+    float u_classify = 0.5f;    ///< Random number of the probabilistic classification.
+    float rr_survival = 1.f;    ///< Russian roulette survival probability applied after x_k (1 if none).
+};
+
+/// A camera path: the film position and its vertices x_1..x_n.
+struct CameraPath {
+    Vec2 film{0.f};                  ///< Film position (pixel units) of the primary ray.
+    std::vector<PathVertex> v;       ///< Vertices; v[0] is x_1, the first hit.
+    uint64_t rays = 0;               ///< Rays cast to build it.
+    /// Number of vertices.
+    size_t size() const { return v.size(); }
+};
+
+}  // namespace gdr

@@ -1,0 +1,27 @@
+// The shift of gradient-domain path tracing (PI): reconnect as soon as x_k,
+// y_k and x_{k+1} are connectable; otherwise copy the base's half-vector
+// through the vertex (glossy and specular, reflection and refraction). When
+// only x_{k+1} prevented the reconnection, the shift is undefined if the
+// offset reaches a connectable y_{k+1}: the inverse would reconnect there.
+#pragma once
+
+#include "gdr/shift/steps.h"
+
+namespace gdr {
+
+/// Reconnection + half-vector copy.
+struct HalfVectorShift {
+    static constexpr std::string_view kName = "half-vector";
+    /// Shifts vertex in.k.
+    ShiftStep step(const ShiftStepInput& in) const {
+        if (!shift::base_has_next(in)) return ShiftStep{};
+        const bool both = shift::base_connectable(in, in.k) && shift::offset_connectable(in);
+        if (both && shift::base_connectable(in, in.k + 1)) return shift::reconnect(in);
+        ShiftStep s = shift::half_vector(in);
+        s.reject_if_connectable = both;
+        return s;
+    }
+};
+static_assert(ShiftMapping<HalfVectorShift>);
+
+}  // namespace gdr

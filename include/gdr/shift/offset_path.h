@@ -1,0 +1,40 @@
+// Applying a shift mapping to a whole recorded base path: the offset path's
+// vertices, its light connections and the per-step Jacobians, pdfs and BSDF
+// values an estimator or a validator needs.
+#pragma once
+
+#include <vector>
+
+#include "gdr/shift/shift.h"
+
+namespace gdr {
+
+/// The offset path at one depth k: its vertex, its shifted light connection,
+/// and how it leaves towards depth k+1.
+struct OffsetRecord {
+    OffsetVertex y;                 ///< y_k.
+    bool nee = false;               ///< The base's light sample at x_k was shifted to y_k.
+    Color nee_f{0.f};               ///< BSDF value at y_k towards the light point (1/sr).
+    float nee_cos = 0.f;            ///< |cos| at y_k towards the light point.
+    Color nee_radiance{0.f};        ///< Radiance from the light point towards y_k (0 if blocked or back side).
+    double nee_jacobian = 0.0;      ///< d omega_y / d omega_x of the light direction (the point is shared).
+    double nee_pdf_light_w = 0.0;   ///< Offset's own light-sampling density of that direction (1/sr).
+    float nee_pdf_bsdf = 0.f;       ///< Offset's own BSDF density of that direction (1/sr).
+    ShiftStep step;                 ///< How the offset leaves y_k (kind Fail if it does not).
+};
+
+/// An offset path y = T(x): records for depths 0 .. size()-1; it ends where the
+/// base ends or where a step failed (then f(y) = 0 beyond).
+struct OffsetPath {
+    std::vector<OffsetRecord> v;  ///< Records; v[k] pairs with base.v[k].
+    uint64_t rays = 0;            ///< Rays cast to build it.
+    /// Number of offset vertices.
+    size_t size() const { return v.size(); }
+};
+
+/// Shifts `base` to the pixel displaced by `pixel_offset` (pixel units, e.g. (1,0))
+/// with `shift`, tracing the offset's own rays where needed.
+void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                       const Vec2& pixel_offset, OffsetPath& out);
+
+}  // namespace gdr

@@ -1,0 +1,116 @@
+// Shift mappings: how a base path x of one pixel becomes the offset path
+// y = T(x) of a neighbouring pixel. A shift is applied vertex by vertex:
+// at each base vertex x_k it decides how the offset leaves its own vertex y_k
+// (a direction of its own, or a reconnection onto the base's next vertex
+// x_{k+1}) and returns the Jacobian |d omega_y / d omega_x| of that step.
+//
+// A new shift is any type satisfying the ShiftMapping concept; wrap it with
+// make_shift() and add it to shift_registry() to use it in the `gpt`
+// integrator and the validator, without touching gdr.
+#pragma once
+
+#include <concepts>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "gdr/core/params.h"
+#include "gdr/path/vertex.h"
+#include "gdr/registry.h"
+
+namespace gdr {
+
+/// How vertices are classified as connectable (rough enough to reconnect at).
+struct ShiftConfig {
+    float threshold = 0.001f;    ///< Roughness (GGX alpha) above which a vertex is connectable.
+    bool probabilistic = false;  ///< Thesis 4.3.5: classify with a probability instead of a hard threshold.
+};
+
+/// True if a vertex with BSDF roughness `roughness` counts as connectable. With
+/// probabilistic classification the probability rises from 0 at threshold/4 to
+/// 1 at 4*threshold (linear in log roughness) and `u` (fixed per path depth,
+/// shared by base and offset) decides, so the shift stays invertible.
+inline bool is_connectable(float roughness, float u, const ShiftConfig& c) {
+    if (!c.probabilistic) return roughness > c.threshold;
+    if (roughness <= 0.f) return false;
+    const float t = (std::log(roughness / c.threshold) + std::log(4.f)) / (2.f * std::log(4.f));
+    return u < std::clamp(t, 0.f, 1.f);
+}
+
+/// The offset path's current vertex y_k.
+struct OffsetVertex {
+    SurfaceInteraction si;       ///< y_k (equals x_k once the offset has reconnected).
+    Vec3 wo{0.f};                ///< Local direction from y_k towards y_{k-1}.
+    Color emitted{0.f};          ///< Radiance emitted from y_k towards y_{k-1}.
+    bool on_base = false;        ///< y_k is the base vertex x_k (reconnected at or before k).
+    bool merged = false;         ///< And y_{k-1} = x_{k-1} too: the offset equals the base from here on.
+};
+
+/// Everything a shift step may look at: the base path, the current depth and the offset's vertex.
+struct ShiftStepInput {
+    const Scene& scene;        ///< For visibility and tracing.
+    const ShiftConfig& config; ///< Classification settings.
+    const CameraPath& base;    ///< The recorded base path.
+    size_t k;                  ///< Index of the current base vertex (base.v[k] = x_{k+1} in 1-based terms).
+    const OffsetVertex& y;     ///< The offset's vertex at the same depth.
+};
+
+/// The result of shifting the base's scattering at x_k onto y_k.
+struct ShiftStep {
+    enum class Kind {
+        Fail,       ///< No offset path: f(y) = 0 from here on.
+        Direction,  ///< The offset continues along `wi` with a ray of its own.
+        Reconnect,  ///< The offset connects y_k -> x_{k+1} and shares the base's vertices after it.
+    };
+    Kind kind = Kind::Fail;
+    Vec3 wi{0.f};           ///< Offset direction at y_k (local frame of y_k).
+    double jacobian = 0.0;  ///< |d omega_y / d omega_x| of this step (solid angle at y_k over solid angle at x_k).
+    Color f{0.f};           ///< Offset BSDF value along wi (the delta-lobe weight for a delta lobe).
+    float pdf = 0.f;        ///< Offset's own solid-angle pdf of wi (discrete lobe probability for delta lobes).
+    bool delta = false;     ///< The offset scattered through a delta lobe.
+    /// The step is only valid if the vertex it reaches is NOT connectable (otherwise
+    /// the inverse shift would have reconnected there, and T would not be invertible).
+    bool reject_if_connectable = false;
+};
+
+/// A shift mapping: a type with a name and a step() that shifts one vertex.
+template <typename S>
+concept ShiftMapping = requires(const S& s, const ShiftStepInput& in) {
+    { S::kName } -> std::convertible_to<std::string_view>;
+    { s.step(in) } -> std::same_as<ShiftStep>;
+};
+
+/// Type-erased shift mapping, as stored in the registry and used by integrators.
+class Shift {
+public:
+    virtual ~Shift() = default;
+    /// Shifts the base's scattering at vertex in.k onto the offset vertex in.y.
+    virtual ShiftStep step(const ShiftStepInput& in) const = 0;
+    /// Registered name.
+    virtual std::string name() const = 0;
+};
+
+/// Wraps a ShiftMapping value as a Shift.
+template <ShiftMapping S>
+class ShiftModel final : public Shift {
+public:
+    explicit ShiftModel(S s) : s_(std::move(s)) {}
+    ShiftStep step(const ShiftStepInput& in) const override { return s_.step(in); }
+    std::string name() const override { return std::string(S::kName); }
+
+private:
+    S s_;
+};
+
+/// Makes a heap-allocated Shift from a ShiftMapping value.
+template <ShiftMapping S>
+std::unique_ptr<Shift> make_shift(S s) {
+    return std::make_unique<ShiftModel<S>>(std::move(s));
+}
+
+/// The process-wide shift registry (reconnection, half-vector, replay, replay-reconnect built in).
+Registry<Shift>& shift_registry();
+/// Adds gdr's built-in shifts to a registry.
+void register_builtin_shifts(Registry<Shift>& r);
+
+}  // namespace gdr

@@ -1,0 +1,255 @@
+// Gradient-domain path tracing: every base path is shifted to its four
+// neighbours; the MIS-weighted differences give the gradients dx, dy and the
+// weighted base and offset contributions give the primal image.
+#include "gdr/integrators/gpt.h"
+
+#include "gdr/integrators/path_dims.h"
+#include "gdr/integrators/tiled.h"
+#include "gdr/path/trace.h"
+
+namespace gdr {
+
+namespace {
+
+// Solid-angle density with which light sampling at `from` picks the emitter point of `at`.
+double light_pdf_w(const Scene& scene, const Vec3& from, const SurfaceInteraction& at) {
+    const float pa = scene.light_pdf_a(at.prim);
+    if (!(pa > 0.f)) return 0.0;
+    const Vec3d d = Vec3d(at.p) - Vec3d(from);
+    const double dist = glm::length(d);
+    return pdf_a_to_w(pa, dist, glm::dot(Vec3d(at.ng), d / dist));
+}
+
+void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
+    const float wf = float(w);
+    e.base += wf * cx;
+    e.offset += wf * cy;
+    e.gradient += wf * (cy - cx);
+}
+
+}  // namespace
+
+PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const OffsetPath* y, const GradientMis& mis) {
+    PairEstimate e;
+    Color beta_x(1.f), beta_y(1.f);
+    double r = 1.0, r_prev = 1.0;  // offset prefix density / base prefix density (through k-1, k-2)
+    const size_t m = y ? y->size() : 0;
+    bool y_alive = m > 0;
+    for (size_t k = 0; k < x.size(); ++k) {
+        const PathVertex& X = x.v[k];
+        const bool has_y = y_alive && k < m;
+
+        // Emitter reached by BSDF sampling at x_{k-1}.
+        if (k >= 1) {
+            const PathVertex& P = x.v[k - 1];
+            const Color cx = beta_x * X.emitted;
+            Color cy(0.f);
+            double b_b = 0.0, b_l = 0.0;
+            if (has_y) {
+                const OffsetRecord& Y = y->v[k];
+                const ShiftStep& S = y->v[k - 1].step;
+                cy = beta_y * Y.y.emitted;
+                b_b = double(S.pdf) * S.jacobian;
+                const OffsetVertex& Yp = y->v[k - 1].y;
+                if (!S.delta && Y.y.si.is_emitter() && scene.has_lights() && !Yp.si.material->bsdf->is_pure_delta())
+                    b_l = light_pdf_w(scene, Yp.si.p, Y.y.si) * S.jacobian;
+            }
+            if (!is_black(cx) || !is_black(cy)) {
+                const double a_b = P.bs.pdf;
+                const double a_l = (!P.bs.is_delta() && P.nee.valid) ? light_pdf_w(scene, P.si.p, X.si) : 0.0;
+                add(e, gradient_mis_weight(mis, a_b, a_l, b_b, b_l, r_prev), cx, cy);
+            }
+        }
+
+        // Light sample at x_k, shared with the offset.
+        if (X.nee.valid) {
+            const LightSample& ls = X.nee.light;
+            const Vec3 d = ls.p - X.si.p;
+            const float dist = glm::length(d);
+            const double pdf_l = dist > 0.f ? pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist)) : 0.0;
+            if (pdf_l > 0.0) {
+                const Bsdf& bsdf = *X.si.material->bsdf;
+                const Vec3 wi = X.si.frame.to_local(d / dist);
+                Color cx(0.f), cy(0.f);
+                if (X.nee.visible) cx = beta_x * bsdf.eval(X.wo, wi, X.si.uv) * abs_cos_theta(wi) * ls.radiance * float(1.0 / pdf_l);
+                double b_l = 0.0, b_b = 0.0;
+                if (has_y && y->v[k].nee) {
+                    const OffsetRecord& R = y->v[k];
+                    b_l = R.nee_pdf_light_w * R.nee_jacobian;
+                    b_b = double(R.nee_pdf_bsdf) * R.nee_jacobian;
+                    cy = beta_y * R.nee_f * R.nee_cos * R.nee_radiance * float(R.nee_jacobian / pdf_l);
+                }
+                if (!is_black(cx) || !is_black(cy))
+                    add(e, gradient_mis_weight(mis, pdf_l, bsdf.pdf(X.wo, wi, X.si.uv), b_l, b_b, r), cx, cy);
+            }
+        }
+
+        if (!X.scattered) break;
+        beta_x *= scatter_weight(X);
+        r_prev = r;
+        if (has_y) {
+            const ShiftStep& S = y->v[k].step;
+            if (S.kind == ShiftStep::Kind::Fail || k + 1 >= m) {
+                y_alive = false;
+            } else {
+                beta_y *= S.f * float(abs_cos_theta(S.wi) * S.jacobian / (double(X.bs.pdf) * X.rr_survival));
+                r *= double(S.pdf) * S.jacobian / double(X.bs.pdf);
+            }
+        }
+    }
+    return e;
+}
+
+namespace {
+
+constexpr int kDirs = 4;
+const int kDx[kDirs] = {1, -1, 0, 0};
+const int kDy[kDirs] = {0, 0, 1, -1};
+const char* const kGradSlot[kDirs] = {"g+x", "g-x", "g+y", "g-y"};
+const char* const kSplatSlot[kDirs] = {"s+x", "s-x", "s+y", "s-y"};
+
+class GradientPathTracer final : public TiledIntegrator {
+public:
+    explicit GradientPathTracer(const Params& p) {
+        const std::string shift_name = p.get_string("shift", "half-vector");
+        shift_ = shift_registry().create(shift_name, Params("shift"));
+        shift_name_ = shift_name;
+        config_.threshold = float(p.get_real("threshold", 0.001));
+        config_.probabilistic = p.get_choice("classification", "hard", {"hard", "probabilistic"}) == "probabilistic";
+        mis_.heuristic = p.get_choice("mis", "power", {"power", "balance"}) == "power" ? MisHeuristic::Power
+                                                                                        : MisHeuristic::Balance;
+        trace_.max_depth = int(p.get_int("max_depth", -1));
+        trace_.rr_depth = int(p.get_int("rr_depth", 5));
+        primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
+        if (!(config_.threshold >= 0.f)) throw ParameterError("gpt: threshold must be >= 0");
+        if (trace_.max_depth == 0 || trace_.max_depth < -1) throw ParameterError("gpt: max_depth must be -1 (unlimited) or >= 1");
+        if (trace_.rr_depth < 1) throw ParameterError("gpt: rr_depth must be >= 1");
+    }
+
+    std::string describe() const override {
+        return "shift=" + shift_name_ + "\nthreshold=" + std::to_string(config_.threshold) +
+               "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
+               "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
+               "\nmax_depth=" + std::to_string(trace_.max_depth) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
+               "\nprimal=" + (primal_both_ ? "both" : "base") + "\n";
+    }
+
+protected:
+    std::vector<SlotSpec> slots() const override {
+        std::vector<SlotSpec> s{{"base", 3, true}, {"self", 3, true}};
+        for (int d = 0; d < kDirs; ++d) s.push_back({kGradSlot[d], 3, true});
+        for (int d = 0; d < kDirs; ++d) s.push_back({kSplatSlot[d], 3, true});
+        s.push_back({"direct", 3, false});
+        s.push_back({"albedo", 3, false});
+        s.push_back({"normal", 3, false});
+        s.push_back({"depth", 1, false});
+        return s;
+    }
+
+    void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
+        thread_local CameraPath path;
+        thread_local OffsetPath offset;
+        sampler.set_dimension(dims::kFilm);
+        const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
+        trace_camera_path(scene, film, sampler, trace_, path);
+        rays += path.rays;
+        if (path.size() == 0) return;
+
+        auto put = [&](int slot, const Color& c) {
+            out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
+        };
+        const PairEstimate alone = evaluate_pair(scene, path, nullptr, mis_);
+        put(0, alone.base);
+        const int W = scene.camera().width(), H = scene.camera().height();
+        for (int d = 0; d < kDirs; ++d) {
+            const int nx = px + kDx[d], ny = py + kDy[d];
+            if (nx < 0 || ny < 0 || nx >= W || ny >= H) {
+                // No neighbour to share with: the base alone estimates its pixel.
+                put(1, 0.25f * alone.base);
+                continue;
+            }
+            shift_camera_path(scene, *shift_, config_, path, Vec2(float(kDx[d]), float(kDy[d])), offset);
+            rays += offset.rays;
+            const PairEstimate e = evaluate_pair(scene, path, &offset, mis_);
+            put(1, 0.25f * e.base);
+            put(2 + d, e.gradient);
+            put(2 + kDirs + d, 0.25f * e.offset);
+        }
+        put(2 + 2 * kDirs, path.v[0].emitted);
+        // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
+        float* aux = out + 3 * (3 + 2 * kDirs);
+        for (const PathVertex& v : path.v) {
+            if (!is_connectable(v.si.material->bsdf->min_roughness(), 0.5f, ShiftConfig{config_.threshold, false}) &&
+                &v != &path.v.back())
+                continue;
+            const Color a = v.si.material->bsdf->albedo(v.si.uv);
+            aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
+            aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
+            break;
+        }
+        aux[6] = path.v[0].si.t;
+    }
+
+    void finalize(const Accumulated& acc, FrameBuffer& out) const override {
+        const int W = out.width(), H = out.height();
+        Image primal(W, H, 3), primal_var(W, H, 3), dx(W, H, 3), dy(W, H, 3), dx_var(W, H, 3), dy_var(W, H, 3);
+        const Image& self = acc.mean_of("self");
+        const Image& self_v = acc.variance_of("self");
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                Color p = self.rgb(x, y), pv = self_v.rgb(x, y);
+                // Each neighbour q = (x,y) - step splatted its offset towards (x,y).
+                for (int d = 0; d < kDirs; ++d) {
+                    const int qx = x - kDx[d], qy = y - kDy[d];
+                    if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
+                    p += acc.mean_of(kSplatSlot[d]).rgb(qx, qy);
+                    pv += acc.variance_of(kSplatSlot[d]).rgb(qx, qy);
+                }
+                primal.set_rgb(x, y, p);
+                primal_var.set_rgb(x, y, pv);
+                // dx(x) = I(x+1) - I(x): from x shifted right, minus from x+1 shifted left.
+                if (x + 1 < W) {
+                    dx.set_rgb(x, y, acc.mean_of("g+x").rgb(x, y) - acc.mean_of("g-x").rgb(x + 1, y));
+                    dx_var.set_rgb(x, y, acc.variance_of("g+x").rgb(x, y) + acc.variance_of("g-x").rgb(x + 1, y));
+                }
+                if (y + 1 < H) {
+                    dy.set_rgb(x, y, acc.mean_of("g+y").rgb(x, y) - acc.mean_of("g-y").rgb(x, y + 1));
+                    dy_var.set_rgb(x, y, acc.variance_of("g+y").rgb(x, y) + acc.variance_of("g-y").rgb(x, y + 1));
+                }
+            }
+        const Image& direct = acc.mean_of("direct");
+        Image color(W, H, 3);
+        const Image& chosen = primal_both_ ? primal : acc.mean_of("base");
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) color.set_rgb(x, y, chosen.rgb(x, y) + direct.rgb(x, y));
+        out.set("color", std::move(color));
+        out.set("primal", chosen);
+        out.set("dx", std::move(dx));
+        out.set("dy", std::move(dy));
+        out.set("direct", direct);
+        out.set("primal_variance", primal_both_ ? primal_var : acc.variance_of("base"));
+        out.set("dx_variance", std::move(dx_var));
+        out.set("dy_variance", std::move(dy_var));
+        out.set("albedo", acc.mean_of("albedo"));
+        out.set("normal", acc.mean_of("normal"));
+        out.set("depth", acc.mean_of("depth"));
+    }
+
+private:
+    std::unique_ptr<Shift> shift_;
+    std::string shift_name_;
+    ShiftConfig config_;
+    GradientMis mis_;
+    TraceOptions trace_;
+    bool primal_both_ = true;
+};
+
+}  // namespace
+
+void register_gpt(Registry<Integrator>& r) {
+    r.add("gpt",
+          "gradient-domain path tracing (params: shift, threshold, classification, mis, max_depth, rr_depth, primal)",
+          [](const Params& p) { return std::make_unique<GradientPathTracer>(p); });
+}
+
+}  // namespace gdr

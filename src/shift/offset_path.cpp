@@ -1,0 +1,176 @@
+#include "gdr/shift/offset_path.h"
+
+#include "gdr/shift/half_vector.h"
+#include "gdr/shift/reconnection.h"
+#include "gdr/shift/replay.h"
+#include "gdr/shift/steps.h"
+
+namespace gdr {
+
+namespace {
+
+// The base's light sample at x_k, seen from the offset vertex y_k.
+void shift_light_connection(const Scene& scene, const ShiftConfig& config, const CameraPath& base, size_t k,
+                            OffsetRecord& rec, uint64_t& rays) {
+    const PathVertex& x = base.v[k];
+    if (!x.nee.valid) return;
+    const LightSample& ls = x.nee.light;
+    const OffsetVertex& y = rec.y;
+    const Bsdf& bsdf = *y.si.material->bsdf;
+    if (y.on_base) {
+        // Same vertex, same light segment: only the BSDF's incoming direction differs.
+        const Vec3 d = ls.p - x.si.p;
+        const float dist = glm::length(d);
+        if (!(dist > 0.f)) return;
+        const Vec3 wi = y.si.frame.to_local(d / dist);
+        rec.nee = true;
+        rec.nee_f = bsdf.eval(y.wo, wi, y.si.uv);
+        rec.nee_cos = abs_cos_theta(wi);
+        rec.nee_radiance = x.nee.visible ? ls.radiance : Color(0.f);
+        rec.nee_jacobian = 1.0;
+        rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist));
+        rec.nee_pdf_bsdf = bsdf.pdf(y.wo, wi, y.si.uv);
+        return;
+    }
+    // The light point is shared in area measure; both ends must be connectable
+    // so that the inverse shift is defined too.
+    const ShiftStepInput in{scene, config, base, k, y};
+    if (!shift::base_connectable(in, k) || !shift::offset_connectable(in)) return;
+    const Vec3d pz(ls.p), nz(ls.n);
+    const Vec3d dy = pz - Vec3d(y.si.p), dx = pz - Vec3d(x.si.p);
+    const double ly2 = glm::dot(dy, dy), lx2 = glm::dot(dx, dx);
+    if (!(ly2 > 0.0) || !(lx2 > 0.0)) return;
+    const double ly = std::sqrt(ly2), lx = std::sqrt(lx2);
+    const double cos_zy = -glm::dot(nz, dy) / ly, cos_zx = -glm::dot(nz, dx) / lx;
+    rec.nee = true;
+    const Vec3 wi_world = Vec3(dy / ly);
+    const Vec3 wi = y.si.frame.to_local(wi_world);
+    rec.nee_cos = abs_cos_theta(wi);
+    rec.nee_f = bsdf.eval(y.wo, wi, y.si.uv);
+    rec.nee_pdf_bsdf = bsdf.pdf(y.wo, wi, y.si.uv);
+    rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, ly, cos_zy);
+    rec.nee_jacobian = std::abs(cos_zx) > 0.0 ? (std::abs(cos_zy) / ly2) / (std::abs(cos_zx) / lx2) : 0.0;
+    const Material& light_mat = scene.materials()[scene.mesh().material_ids[ls.prim]];
+    const Color le = cos_zy > 0.0 ? light_mat.emission : Color(0.f);
+    if (!is_black(le) && !is_black(rec.nee_f)) {
+        ++rays;
+        rec.nee_radiance = scene.visible(y.si.p, y.si.ng, ls.p, ls.n) ? le : Color(0.f);
+    }
+}
+
+// The offset vertex that coincides with base vertex x_{k+1}, entered from `from`.
+OffsetVertex vertex_on_base(const PathVertex& next, const Vec3& from, bool merged) {
+    OffsetVertex v;
+    v.si = next.si;
+    v.on_base = true;
+    v.merged = merged;
+    if (merged) {
+        v.wo = next.wo;
+        v.emitted = next.emitted;
+    } else {
+        const Vec3 w = glm::normalize(from - next.si.p);
+        v.wo = next.si.frame.to_local(w);
+        v.emitted = next.si.is_emitter() ? next.si.emitted(w) : Color(0.f);
+    }
+    return v;
+}
+
+OffsetRecord record_at(const OffsetVertex& v) {
+    OffsetRecord r;
+    r.y = v;
+    return r;
+}
+
+}  // namespace
+
+void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                       const Vec2& pixel_offset, OffsetPath& out) {
+    out.v.clear();
+    out.rays = 0;
+    if (base.size() == 0) return;
+    out.v.reserve(base.size());
+    {
+        const Ray ray = scene.camera().generate_ray(base.film + pixel_offset);
+        OffsetRecord r0;
+        ++out.rays;
+        if (!scene.intersect(ray, r0.y.si)) return;
+        r0.y.wo = r0.y.si.frame.to_local(-ray.d);
+        r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
+        out.v.push_back(r0);
+    }
+    for (size_t k = 0; k < base.size(); ++k) {
+        OffsetRecord& rec = out.v[k];
+        shift_light_connection(scene, config, base, k, rec, out.rays);
+        const PathVertex& x = base.v[k];
+        if (!x.scattered || k + 1 >= base.size()) return;
+        const PathVertex& next = base.v[k + 1];
+        const OffsetVertex& y = rec.y;
+        ShiftStep& s = rec.step;
+        if (y.merged) {
+            s.kind = ShiftStep::Kind::Direction;
+            s.wi = x.bs.wi, s.f = x.bs.f, s.pdf = x.bs.pdf, s.delta = x.bs.is_delta(), s.jacobian = 1.0;
+            out.v.push_back(record_at(vertex_on_base(next, x.si.p, true)));
+            continue;
+        }
+        if (y.on_base) {
+            // Reconnected at x_k: same outgoing direction, own incoming one.
+            s.wi = x.bs.wi;
+            s.jacobian = 1.0;
+            if (x.bs.is_delta()) {
+                const auto e = y.si.material->bsdf->eval_delta(y.wo, s.wi, y.si.uv);
+                if (!e) return;
+                s.f = e->f, s.pdf = e->pdf, s.delta = true;
+            } else {
+                s.f = y.si.material->bsdf->eval(y.wo, s.wi, y.si.uv);
+                s.pdf = y.si.material->bsdf->pdf(y.wo, s.wi, y.si.uv);
+            }
+            if (is_black(s.f)) return;
+            s.kind = ShiftStep::Kind::Direction;
+            out.v.push_back(record_at(vertex_on_base(next, x.si.p, true)));
+            continue;
+        }
+        s = shift.step(ShiftStepInput{scene, config, base, k, y});
+        if (s.kind == ShiftStep::Kind::Fail) return;
+        if (s.kind == ShiftStep::Kind::Reconnect) {
+            ++out.rays;  // the visibility test of the reconnection
+            out.v.push_back(record_at(vertex_on_base(next, y.si.p, false)));
+            continue;
+        }
+        OffsetRecord nr;
+        const Ray ray = spawn_ray(y.si, y.si.frame.to_world(s.wi));
+        ++out.rays;
+        if (!scene.intersect(ray, nr.y.si)) {
+            s.kind = ShiftStep::Kind::Fail;  // escaped: no emitter at infinity, so no more contribution
+            return;
+        }
+        if (s.reject_if_connectable &&
+            is_connectable(nr.y.si.material->bsdf->min_roughness(), next.u_classify, config)) {
+            s.kind = ShiftStep::Kind::Fail;
+            return;
+        }
+        nr.y.wo = nr.y.si.frame.to_local(-ray.d);
+        nr.y.emitted = nr.y.si.is_emitter() ? nr.y.si.emitted(-ray.d) : Color(0.f);
+        out.v.push_back(nr);
+    }
+}
+
+void register_builtin_shifts(Registry<Shift>& r) {
+    r.add("half-vector", "reconnection where possible, half-vector copy through glossy/specular vertices (PI)",
+          [](const Params&) { return make_shift(HalfVectorShift{}); });
+    r.add("reconnection", "reconnect at the first vertex, fail otherwise",
+          [](const Params&) { return make_shift(ReconnectionShift{}); });
+    r.add("replay", "random-number replay at every vertex", [](const Params&) { return make_shift(ReplayShift{}); });
+    r.add("replay-reconnect", "replay until connectable, then reconnect (survey's simple shift)",
+          [](const Params&) { return make_shift(ReplayReconnectShift{}); });
+}
+
+Registry<Shift>& shift_registry() {
+    static Registry<Shift> r = [] {
+        Registry<Shift> reg("shift mapping");
+        register_builtin_shifts(reg);
+        return reg;
+    }();
+    return r;
+}
+
+}  // namespace gdr
