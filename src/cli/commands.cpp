@@ -34,10 +34,13 @@ std::string usage() {
            "  gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N]\n"
            "             [--seed S] [--set key=value]... [--resume PREVIOUS.exr] [--exposure STOPS] -o OUT.exr\n"
            "  gdr info FILE.exr\n"
+           "  gdr check-shift SCENE.json [--shift NAME] [--paths N] [--seed S] [--max-depth D]\n"
+           "             [--threshold T] [--probabilistic]\n"
            "  gdr list                      (integrators and their parameters)\n";
 }
 
 int list_plugins();
+int check_shift(const std::vector<std::string>& args);
 
 int run(const std::vector<std::string>& args) {
     if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
@@ -49,6 +52,7 @@ int run(const std::vector<std::string>& args) {
     if (cmd == "render") return render(rest);
     if (cmd == "info") return info(rest);
     if (cmd == "list") return list_plugins();
+    if (cmd == "check-shift") return check_shift(rest);
     throw ParameterError("unknown command '" + cmd + "'\n" + usage());
 }
 

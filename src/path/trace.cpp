@@ -33,6 +33,8 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
         if (!last && scene.has_lights() && !bsdf.is_pure_delta()) {
             x.nee.valid = true;
             x.nee.light = scene.sample_light(x.si.p, u_light, u_point);
+            x.nee.u_select = u_light;
+            x.nee.u_point = u_point;
             if (!is_black(x.nee.light.radiance)) {
                 ++path.rays;
                 x.nee.visible = scene.visible(x.si.p, x.si.ng, x.nee.light.p, x.nee.light.n);

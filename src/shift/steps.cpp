@@ -108,6 +108,7 @@ ShiftStep replay(const ShiftStepInput& in) {
     // Replay maps primary samples identically, so the offset's density in the
     // base's measure equals the base's: J = pdf_x / pdf_y.
     s.jacobian = double(x.bs.pdf) / double(bs->pdf);
+    s.sample_space = true;
     return s;
 }
 

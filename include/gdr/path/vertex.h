@@ -35,6 +35,8 @@ struct LightConnection {
     bool valid = false;       ///< A sample was drawn (vertex had a non-delta lobe, scene has lights).
     LightSample light;        ///< The point on the emitter (area measure, shared by offset paths).
     bool visible = false;     ///< Segment vertex -> light point unblocked (only tested when radiance > 0).
+    float u_select = 0.f;     ///< Random number that picked the emitter triangle.
+    Vec2 u_point{0.f};        ///< Random numbers that picked the point on it.
 };
 
 /// One recorded vertex x_k of a camera path (k >= 1; x_0 is the pinhole).

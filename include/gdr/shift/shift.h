@@ -68,6 +68,10 @@ struct ShiftStep {
     Color f{0.f};           ///< Offset BSDF value along wi (the delta-lobe weight for a delta lobe).
     float pdf = 0.f;        ///< Offset's own solid-angle pdf of wi (discrete lobe probability for delta lobes).
     bool delta = false;     ///< The offset scattered through a delta lobe.
+    /// The Jacobian is a ratio of sampling densities in primary-sample space
+    /// (random replay), not a geometric one: at BSDFs that mix lobes it differs
+    /// from the direction-to-direction Jacobian by the lobe-selection terms.
+    bool sample_space = false;
     /// The step is only valid if the vertex it reaches is NOT connectable (otherwise
     /// the inverse shift would have reconnected there, and T would not be invertible).
     bool reject_if_connectable = false;

@@ -1,0 +1,36 @@
+#include <fmt/core.h>
+
+#include "gdr/cli/commands.h"
+#include "gdr/core/error.h"
+#include "gdr/io/scene_file.h"
+#include "gdr/shift/validate.h"
+
+namespace gdr::cli {
+
+int check_shift(const std::vector<std::string>& args) {
+    ArgReader a{args};
+    std::string scene_path, shift_name = "half-vector";
+    ValidateOptions opt;
+    ShiftConfig cfg;
+    while (a.more()) {
+        const std::string o = a.next();
+        if (o == "--shift") shift_name = a.value(o);
+        else if (o == "--paths") opt.paths = int(a.int_value(o));
+        else if (o == "--seed") opt.seed = uint64_t(a.int_value(o));
+        else if (o == "--max-depth") opt.max_depth = int(a.int_value(o));
+        else if (o == "--threshold") cfg.threshold = float(a.real_value(o));
+        else if (o == "--probabilistic") cfg.probabilistic = true;
+        else if (!o.empty() && o[0] == '-') throw ParameterError("check-shift: unknown option '" + o + "'\n" + usage());
+        else if (scene_path.empty()) scene_path = o;
+        else throw ParameterError("check-shift: unexpected argument '" + o + "'");
+    }
+    if (scene_path.empty()) throw ParameterError("check-shift: no scene file given\n" + usage());
+    if (opt.paths <= 0) throw ParameterError("check-shift: --paths must be positive");
+    const SceneFile sf = load_scene_file(scene_path);
+    const auto shift = shift_registry().create(shift_name, Params("--shift"));
+    const ShiftReport rep = validate_shift(*sf.scene, *shift, cfg, opt);
+    fmt::print("{}: {}", scene_path, rep.summary());
+    return rep.passed ? 0 : 1;
+}
+
+}  // namespace gdr::cli

@@ -1,0 +1,203 @@
+#include "gdr/shift/validate.h"
+
+#include <algorithm>
+#include <bit>
+#include <optional>
+#include <sstream>
+
+#include "gdr/core/sampler.h"
+#include "gdr/integrators/path_dims.h"
+#include "gdr/path/trace.h"
+#include "gdr/shift/offset_path.h"
+
+namespace gdr {
+
+namespace {
+
+// Solid-angle area spanned by central differences of a direction (first order).
+double spanned_area(const Vec3d w[4]) { return glm::length(glm::cross(w[0] - w[1], w[2] - w[3])); }
+
+// Finite-difference Jacobian of the shift step at base vertex k: perturbs the
+// numbers that sampled x_k's direction, re-traces x_{k+1}, re-applies the step.
+std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, const ShiftConfig& config,
+                                       const CameraPath& x, size_t k, const OffsetVertex& y, const ShiftStep& ref,
+                                       float eps) {
+    const PathVertex& X = x.v[k];
+    const Bsdf& bsdf = *X.si.material->bsdf;
+    CameraPath xp;
+    xp.film = x.film;
+    xp.v.assign(x.v.begin(), x.v.begin() + long(std::min(x.size(), k + 2)));
+    Vec3d wx[4], wy[4];
+    const Vec2 du[4] = {{eps, 0.f}, {-eps, 0.f}, {0.f, eps}, {0.f, -eps}};
+    for (int i = 0; i < 4; ++i) {
+        const Vec2 u = X.u_dir + du[i];
+        if (u.x <= 0.f || u.y <= 0.f || u.x >= 1.f || u.y >= 1.f) return std::nullopt;
+        const auto bs = bsdf.sample(X.wo, X.si.uv, X.u_lobe, u);
+        if (!bs || bs->lobe != X.bs.lobe || !(bs->pdf > 0.f)) return std::nullopt;
+        xp.v[k].bs = *bs;
+        xp.v[k].u_dir = u;
+        const Vec3 dir = X.si.frame.to_world(bs->wi);
+        SurfaceInteraction hit;
+        if (!scene.intersect(spawn_ray(X.si, dir), hit) || hit.prim != x.v[k + 1].si.prim) return std::nullopt;
+        xp.v[k + 1].si = hit;
+        xp.v[k + 1].wo = hit.frame.to_local(-dir);
+        const ShiftStep s = shift.step(ShiftStepInput{scene, config, xp, k, y});
+        if (s.kind != ref.kind) return std::nullopt;
+        wx[i] = Vec3d(dir);
+        wy[i] = Vec3d(y.si.frame.to_world(s.wi));
+    }
+    const double ax = spanned_area(wx);
+    if (!(ax > 0.0)) return std::nullopt;
+    return spanned_area(wy) / ax;
+}
+
+// Finite-difference Jacobian of the shared light point: moves the point in its
+// emitter's tangent plane (in double, independent of how it was sampled).
+std::optional<double> fd_light_jacobian(const PathVertex& X, const OffsetVertex& y, float eps) {
+    const Vec3d p(X.nee.light.p), n(X.nee.light.n), px(X.si.p), py(y.si.p);
+    const Frame f(X.nee.light.n);
+    const double h = double(eps) * glm::length(p - px);
+    const Vec3d d[4] = {h * Vec3d(f.s), -h * Vec3d(f.s), h * Vec3d(f.t), -h * Vec3d(f.t)};
+    Vec3d wx[4], wy[4];
+    for (int i = 0; i < 4; ++i) {
+        wx[i] = glm::normalize(p + d[i] - px);
+        wy[i] = glm::normalize(p + d[i] - py);
+    }
+    const double ax = spanned_area(wx);
+    if (!(ax > 0.0)) return std::nullopt;
+    return spanned_area(wy) / ax;
+}
+
+// Central differences err by O(eps^2); one Richardson step cancels that term,
+// which matters where the offset vertex is close to the reconnection vertex.
+template <typename F>
+std::optional<double> richardson(float eps, F&& fd) {
+    const auto a = fd(eps), b = fd(0.5f * eps);
+    if (!a || !b) return std::nullopt;
+    return (4.0 * *b - *a) / 3.0;
+}
+
+// The offset path seen as a base path of its own pixel (same random numbers).
+CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& offset) {
+    CameraPath p;
+    p.film = x.film + offset;
+    for (size_t k = 0; k < y.size(); ++k) {
+        PathVertex v = x.v[k];
+        const OffsetRecord& r = y.v[k];
+        v.si = r.y.si;
+        v.wo = r.y.wo;
+        v.emitted = r.y.emitted;
+        v.scattered = k + 1 < y.size();
+        if (v.scattered) {
+            const ShiftStep& s = r.step;
+            const bool reflect = s.wi.z * r.y.wo.z > 0.f;
+            v.bs.wi = s.wi;
+            v.bs.f = s.f;
+            v.bs.pdf = s.pdf;
+            v.bs.eta = reflect ? 1.f : x.v[k].bs.eta;
+            v.bs.lobe = (reflect ? kReflection : kTransmission) |
+                        (s.delta ? uint32_t(kSpecular) : (x.v[k].bs.lobe & (kDiffuse | kGlossy)));
+        }
+        p.v.push_back(v);
+    }
+    return p;
+}
+
+}  // namespace
+
+ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftConfig& config, const ValidateOptions& o) {
+    ShiftReport rep;
+    rep.shift = shift.name();
+    const int W = scene.camera().width(), H = scene.camera().height();
+    if (W < 2) throw ParameterError("validate_shift: the image must be at least 2 pixels wide");
+    const Vec2 right(1.f, 0.f);
+    const double tol = o.position_tolerance * scene.bounding_radius();
+    std::vector<double> errors;
+    CameraPath x;
+    OffsetPath y, back;
+    TraceOptions topt;
+    topt.max_depth = o.max_depth;
+    topt.rr_depth = 1 << 20;  // roulette changes nothing a shift does; keep paths long
+    for (int i = 0; i < o.paths; ++i) {
+        Sampler pick(SampleKey{o.seed ^ 0x5eedull, 0, 0, uint32_t(i)});
+        const int px = std::min(W - 2, int(pick.next1d() * float(W - 1)));
+        const int py = std::min(H - 1, int(pick.next1d() * float(H)));
+        Sampler s(SampleKey{o.seed, uint32_t(px), uint32_t(py), uint32_t(i)});
+        s.set_dimension(dims::kFilm);
+        trace_camera_path(scene, Vec2(float(px), float(py)) + s.next2d(), s, topt, x);
+        if (x.size() < 2) continue;
+        ++rep.base_paths;
+        shift_camera_path(scene, shift, config, x, right, y);
+
+        for (size_t k = 0; k + 1 < y.size(); ++k) {
+            const OffsetRecord& r = y.v[k];
+            if (r.nee && !r.y.on_base && x.v[k].nee.valid && r.nee_jacobian > 0.0) {
+                if (auto j = richardson(o.fd_step, [&](float e) { return fd_light_jacobian(x.v[k], r.y, e); })) {
+                    const double e = std::abs(r.nee_jacobian / *j - 1.0);
+                    errors.push_back(e);
+                    rep.jacobian_checked++;
+                    rep.jacobian_ok += e <= o.jacobian_tolerance;
+                }
+            }
+            if (r.y.on_base || x.v[k].bs.is_delta() || r.step.kind == ShiftStep::Kind::Fail) continue;
+            // A density-ratio Jacobian equals the geometric one only where each side has a single lobe.
+            const auto lobes = [](const Bsdf& b) { return b.flags() & (kDiffuse | kGlossy); };
+            if (r.step.sample_space && (std::popcount(lobes(*x.v[k].si.material->bsdf)) > 1 ||
+                                        std::popcount(lobes(*r.y.si.material->bsdf)) > 1)) {
+                ++rep.jacobian_skipped;
+                continue;
+            }
+            // Sharp lobes turn numbers into directions with slope ~ roughness: scale the step to stay above float noise.
+            float eps = std::clamp(o.fd_step / std::max(x.v[k].bs.roughness, 1e-3f), o.fd_step, 0.02f);
+            // Keep the moved x_{k+1} well inside the offset vertex's distance to it, or curvature dominates.
+            if (r.step.kind == ShiftStep::Kind::Reconnect) {
+                const float dy = glm::length(x.v[k + 1].si.p - r.y.si.p), dx = glm::length(x.v[k + 1].si.p - x.v[k].si.p);
+                eps *= std::clamp(dy / std::max(dx, 1e-6f), 0.05f, 1.f);
+            }
+            if (auto j = richardson(eps, [&](float e) { return fd_step_jacobian(scene, shift, config, x, k, r.y, r.step, e); })) {
+                const double e = std::abs(r.step.jacobian / *j - 1.0);
+                errors.push_back(e);
+                rep.jacobian_checked++;
+                rep.jacobian_ok += e <= o.jacobian_tolerance;
+            }
+        }
+
+        if (y.size() != x.size()) continue;
+        ++rep.complete;
+        const CameraPath yb = as_base_path(x, y, right);
+        shift_camera_path(scene, shift, config, yb, -right, back);
+        ++rep.reverse_checked;
+        if (back.size() != x.size()) {
+            ++rep.reverse_failed_shift;
+            continue;
+        }
+        bool same = true;
+        for (size_t k = 0; k < x.size(); ++k) same &= glm::length(back.v[k].y.si.p - x.v[k].si.p) <= tol;
+        rep.reverse_ok += same;
+    }
+    if (!errors.empty()) {
+        std::sort(errors.begin(), errors.end());
+        rep.jacobian_median_error = errors[errors.size() / 2];
+        rep.jacobian_worst_error = errors.back();
+    }
+    const auto frac = [](size_t a, size_t b) { return b ? double(a) / double(b) : 1.0; };
+    rep.passed = rep.base_paths > 0 && frac(rep.reverse_ok, rep.reverse_checked) >= o.required_fraction &&
+                 frac(rep.jacobian_ok, rep.jacobian_checked) >= o.required_fraction;
+    return rep;
+}
+
+std::string ShiftReport::summary() const {
+    std::ostringstream os;
+    const auto pct = [](size_t a, size_t b) { return b ? 100.0 * double(a) / double(b) : 100.0; };
+    os.precision(4);
+    os << "shift " << shift << ": " << base_paths << " base paths, failure rate " << 100.0 * failure_rate() << "%\n"
+       << "  reversibility: " << reverse_ok << " / " << reverse_checked << " (" << pct(reverse_ok, reverse_checked)
+       << "%) returned to the base path; " << reverse_failed_shift << " inverse shifts failed\n"
+       << "  jacobian: " << jacobian_ok << " / " << jacobian_checked << " (" << pct(jacobian_ok, jacobian_checked)
+       << "%) within tolerance; median relative error " << jacobian_median_error << ", worst " << jacobian_worst_error
+       << "\n  (" << jacobian_skipped << " replay steps at multi-lobe BSDFs not comparable to a geometric Jacobian)\n"
+       << (passed ? "PASS" : "FAIL") << ": " << shift << "\n";
+    return os.str();
+}
+
+}  // namespace gdr
