@@ -84,6 +84,23 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     rtcReleaseGeometry(geom);
     rtcCommitScene(scene);
     if (!last_error.empty()) throw RuntimeFailure(origin + ": " + last_error);
+
+    hit_info_.resize(mesh_.size());
+    for (size_t t = 0; t < mesh_.size(); ++t) {
+        const Vec3* p = &mesh_.positions[3 * t];
+        const Vec3 ng = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+        if (mesh_.material_ids[t] > kMaterialMask) throw InputError(origin + ": too many materials");
+        uint32_t info = mesh_.material_ids[t];
+        for (int k = 0; k < 3; ++k) {
+            if (!mesh_.normals.empty()) {
+                // Flat faces (vertex normals equal to the face normal) skip interpolation.
+                const Vec3& n = mesh_.normals[3 * t + k];
+                if (std::abs(n.x - ng.x) + std::abs(n.y - ng.y) + std::abs(n.z - ng.z) > 1e-6f) info |= kSmooth;
+            }
+            if (!mesh_.uvs.empty() && (mesh_.uvs[3 * t + k].x != 0.f || mesh_.uvs[3 * t + k].y != 0.f)) info |= kHasUv;
+        }
+        hit_info_[t] = info;
+    }
     build_lights();
 }
 
@@ -96,30 +113,49 @@ void Scene::build_lights() {
     light_pdf_by_prim_.assign(mesh_.size(), 0.f);
     std::vector<double> power;
     for (uint32_t t = 0; t < mesh_.size(); ++t) {
-        const Material& mat = materials_[mesh_.material_ids[t]];
+        const uint32_t mid = mesh_.material_ids[t];
+        const Material& mat = materials_[mid];
         if (is_black(mat.emission)) continue;
         const Vec3* p = &mesh_.positions[3 * t];
-        const double area = 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+        const Vec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+        const double area = 0.5 * glm::length(glm::cross(e1, e2));
         const double pw = double(luminance(mat.emission)) * area;
         if (!(pw > 0.0)) continue;
-        light_tris_.push_back(t);
+        emitters_.push_back(Emitter{p[0], e1, e2, mid, t, float(area)});  // pdf_a set below
         power.push_back(pw);
     }
-    stats_.emitters = light_tris_.size();
+    stats_.emitters = emitters_.size();
+    if (emitters_.empty()) return;
     const double total = std::accumulate(power.begin(), power.end(), 0.0);
-    double acc = 0.0;
-    light_cdf_.resize(power.size());
-    for (size_t i = 0; i < power.size(); ++i) {
-        acc += power[i];
-        light_cdf_[i] = float(acc / total);
-        const Vec3* p = &mesh_.positions[3 * light_tris_[i]];
-        const double area = 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
-        light_pdf_by_prim_[light_tris_[i]] = float(power[i] / total / area);
+    for (size_t i = 0; i < emitters_.size(); ++i) {
+        Emitter& e = emitters_[i];
+        e.pdf_a = float(power[i] / total / double(e.pdf_a));
+        light_pdf_by_prim_[e.prim] = e.pdf_a;
     }
-    if (!light_cdf_.empty()) light_cdf_.back() = 1.f;
+    // Walker/Vose alias table: bucket i holds emitter i with probability keep
+    // and its alias otherwise; every bucket is drawn with probability 1/n.
+    const size_t n = emitters_.size();
+    light_alias_.resize(n);
+    std::vector<double> scaled(n);
+    std::vector<uint32_t> small, large;
+    for (size_t i = 0; i < n; ++i) {
+        scaled[i] = power[i] / total * double(n);
+        light_alias_[i] = AliasBucket{1.f, uint32_t(i)};
+        (scaled[i] < 1.0 ? small : large).push_back(uint32_t(i));
+    }
+    while (!small.empty() && !large.empty()) {
+        const uint32_t s = small.back(), l = large.back();
+        small.pop_back();
+        light_alias_[s] = AliasBucket{float(scaled[s]), l};
+        scaled[l] -= 1.0 - scaled[s];
+        if (scaled[l] < 1.0) large.pop_back(), small.push_back(l);
+    }
+    // Whatever is left holds 1 up to rounding and keeps its own emitter.
 }
 
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
+    if (observer_) [[unlikely]]
+        observer_->on_intersect(ray);
     RTCRayHit rh;
     rh.ray.org_x = ray.o.x, rh.ray.org_y = ray.o.y, rh.ray.org_z = ray.o.z;
     rh.ray.dir_x = ray.d.x, rh.ray.dir_y = ray.d.y, rh.ray.dir_z = ray.d.z;
@@ -134,14 +170,17 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
 
     const uint32_t t = rh.hit.primID;
+    const uint32_t info = hit_info_[t];
     const float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.f - b1 - b2;
-    const Vec3* p = &mesh_.positions[3 * t];
-    si.p = b0 * p[0] + b1 * p[1] + b2 * p[2];
+    // p from the ray, not from the corners: that would be a cache miss, and
+    // its rounding (~1e-7 of the distance) is far below the 1e-4 relative
+    // offset of spawned rays. Embree's Ng is cross(p1 - p0, p2 - p0), our winding.
     si.t = rh.ray.tfar;
+    si.p = ray.o + si.t * ray.d;
     si.prim = t;
-    si.ng = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+    si.ng = glm::normalize(Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
     Vec3 ns = si.ng;
-    if (!mesh_.normals.empty()) {
+    if (info & kSmooth) {
         const Vec3* n = &mesh_.normals[3 * t];
         const Vec3 v = b0 * n[0] + b1 * n[1] + b2 * n[2];
         const float l = glm::length(v);
@@ -150,17 +189,19 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
         if (glm::dot(ns, si.ng) < 0.f) ns = -ns;
     }
     si.frame = Frame(ns);
-    if (!mesh_.uvs.empty()) {
+    if (info & kHasUv) {
         const Vec2* uv = &mesh_.uvs[3 * t];
         si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
     } else {
-        si.uv = Vec2(b1, b2);
+        si.uv = mesh_.uvs.empty() ? Vec2(b1, b2) : Vec2(0.f);
     }
-    si.material = &materials_[mesh_.material_ids[t]];
+    si.material = &materials_[info & kMaterialMask];
     return true;
 }
 
 bool Scene::occluded(const Ray& ray) const {
+    if (observer_) [[unlikely]]
+        observer_->on_occluded(ray);
     RTCRay r;
     r.org_x = ray.o.x, r.org_y = ray.o.y, r.org_z = ray.o.z;
     r.dir_x = ray.d.x, r.dir_y = ray.d.y, r.dir_z = ray.d.z;
@@ -184,20 +225,23 @@ bool Scene::visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& 
 
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
     LightSample ls;
-    if (light_tris_.empty()) return ls;
-    const size_t i = std::min(size_t(std::upper_bound(light_cdf_.begin(), light_cdf_.end(), u_sel) - light_cdf_.begin()),
-                              light_tris_.size() - 1);
-    const uint32_t t = light_tris_[i];
-    const Vec3* p = &mesh_.positions[3 * t];
-    // Uniform point on the triangle (square-root parameterisation).
+    if (emitters_.empty()) return ls;
+    // One number picks the bucket and, by its fraction, emitter or alias (in
+    // double: the product is exact, so the fraction keeps all of u_sel's bits).
+    const size_t n = emitters_.size();
+    const double x = double(u_sel) * double(n);
+    const size_t b = std::min(size_t(x), n - 1);
+    const AliasBucket bucket = light_alias_[b];
+    const Emitter& e = emitters_[float(x - double(b)) < bucket.keep ? b : bucket.alias];
+    // Uniform point on the triangle (square-root parameterisation): barycentrics
+    // (1 - sqrt(u.x), u.y sqrt(u.x), the rest) of the corners p0, p1, p2.
     const float su = std::sqrt(u.x);
-    const float b0 = 1.f - su, b1 = u.y * su;
-    ls.p = b0 * p[0] + b1 * p[1] + (1.f - b0 - b1) * p[2];
-    ls.n = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
-    ls.prim = t;
-    ls.pdf_a = light_pdf_by_prim_[t];
-    const Material& mat = materials_[mesh_.material_ids[t]];
-    ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? mat.emission : Color(0.f);
+    const float b1 = u.y * su, b2 = su - b1;
+    ls.p = e.p0 + b1 * e.e1 + b2 * e.e2;
+    ls.n = glm::normalize(glm::cross(e.e1, e.e2));
+    ls.prim = e.prim;
+    ls.pdf_a = e.pdf_a;
+    ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? materials_[e.material].emission : Color(0.f);
     return ls;
 }
 

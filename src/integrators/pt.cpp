@@ -64,6 +64,9 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
     for (int depth = 1;; ++depth) {
         SurfaceInteraction si;
         ++r.rays;
+        // The light sample at this vertex is known before the hit: start its
+        // cache misses now so they overlap the traversal.
+        if (opt.nee) scene.prefetch_light(sampler.at(dims::vertex(depth) + dims::kLightSelect));
         if (!scene.intersect(ray, si)) break;
         if (depth == 1) r.depth = si.t;
         const Vec3 wo_world = -ray.d;
@@ -83,23 +86,25 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
 
         const Bsdf& bsdf = *si.material->bsdf;
         const Vec3 wo = si.frame.to_local(wo_world);
-        if (!aux_done && !bsdf.is_pure_delta()) {
+        const bool pure_delta = bsdf.is_pure_delta();
+        if (!aux_done && !pure_delta) {
             r.albedo = bsdf.albedo(si.uv);
             r.normal = si.frame.n;
             aux_done = true;
         }
-        sampler.set_dimension(dims::vertex(depth));
-        const float u_light = sampler.next1d();
-        const Vec2 u_point = sampler.next2d();
-        const float u_lobe = sampler.next1d();
-        const Vec2 u_dir = sampler.next2d();
-        const float u_rr = sampler.next1d();
+        // Numbers are drawn by address, only when needed: the vertex block's
+        // layout (path_dims.h) is the same whether or not a strategy runs.
+        const uint32_t block = dims::vertex(depth);
+        sampler.set_dimension(block + dims::kRoulette + 1);  // where sequential draws left it before
 
-        if (opt.nee && scene.has_lights() && !bsdf.is_pure_delta()) {
-            const LightSample ls = scene.sample_light(si.p, u_light, u_point);
+        if (opt.nee && !pure_delta && scene.has_lights()) {
+            const LightSample ls = scene.sample_light(si.p, sampler.at(block + dims::kLightSelect),
+                                                      Vec2(sampler.at(block + dims::kLightPoint),
+                                                           sampler.at(block + dims::kLightPoint + 1)));
             const Vec3 d = ls.p - si.p;
-            const float dist = glm::length(d);
-            if (!is_black(ls.radiance) && dist > 0.f) {
+            const float dist2 = glm::dot(d, d);
+            if (!is_black(ls.radiance) && dist2 > 0.f) {
+                const float dist = std::sqrt(dist2);
                 const Vec3 wi_world = d / dist;
                 const Vec3 wi = si.frame.to_local(wi_world);
                 const Color f = bsdf.eval(wo, wi, si.uv);
@@ -114,7 +119,8 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
             }
         }
 
-        const auto bs = bsdf.sample(wo, si.uv, u_lobe, u_dir);
+        const auto bs = bsdf.sample(wo, si.uv, sampler.at(block + dims::kBsdfLobe),
+                                    Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1)));
         if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) break;
         beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);
         prev_delta = bs->is_delta();
@@ -123,7 +129,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
 
         if (depth >= opt.rr_depth) {
             const float q = roulette_survival(beta);
-            if (u_rr >= q) break;
+            if (sampler.at(block + dims::kRoulette) >= q) break;
             beta /= q;
         }
     }

@@ -3,6 +3,11 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdlib>
+#include <memory>
+#include <new>
+
+#include <sys/mman.h>
 #include <cmath>
 #include <mutex>
 
@@ -15,6 +20,27 @@ namespace gdr {
 namespace {
 constexpr int kTile = 16;
 using Clock = std::chrono::steady_clock;
+
+// Uninitialised doubles on transparent huge pages where the kernel offers them:
+// a 1280x720 render accumulates ~100 MB, and faulting that in as 4 KiB pages
+// costs more than a sample per pixel on a virtual machine.
+struct HugeDoubles {
+    explicit HugeDoubles(size_t n) : bytes((std::max<size_t>(n, 1) * sizeof(double) + kHuge - 1) / kHuge * kHuge) {
+        void* p = std::aligned_alloc(kHuge, bytes);
+        if (!p) throw std::bad_alloc();
+#ifdef MADV_HUGEPAGE
+        madvise(p, bytes, MADV_HUGEPAGE);  // a hint; failure just means small pages
+#endif
+        data = static_cast<double*>(p);
+    }
+    ~HugeDoubles() { std::free(data); }
+    HugeDoubles(const HugeDoubles&) = delete;
+    HugeDoubles& operator=(const HugeDoubles&) = delete;
+    double& operator[](size_t i) { return data[i]; }
+    static constexpr size_t kHuge = size_t(2) << 20;
+    size_t bytes;
+    double* data = nullptr;
+};
 }  // namespace
 
 const Image& Accumulated::mean_of(const std::string& name) const {
@@ -36,12 +62,25 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     prepare(scene);
     const int W = scene.camera().width(), H = scene.camera().height();
     const std::vector<SlotSpec> specs = slots();
-    std::vector<int> offset;
-    int stride = 0;
-    for (const auto& s : specs) offset.push_back(stride), stride += s.channels;
+    std::vector<int> offset, var_offset;  // per slot: first channel in the sums / in the squared sums (-1: none)
+    int stride = 0, var_stride = 0;
+    for (const auto& s : specs) {
+        offset.push_back(stride), stride += s.channels;
+        var_offset.push_back(s.variance ? var_stride : -1), var_stride += s.variance ? s.channels : 0;
+    }
+    // Which squared-sum channel (or -1) each sample value feeds.
+    std::vector<int> var_index(stride, -1);
+    for (size_t s = 0; s < specs.size(); ++s)
+        if (specs[s].variance)
+            for (int c = 0; c < specs[s].channels; ++c) var_index[offset[s] + c] = var_offset[s] + c;
 
     // Double sums keep the variance formula stable for thousands of samples.
-    std::vector<double> sum(size_t(W) * H * stride, 0.0), sum2(size_t(W) * H * stride, 0.0);
+    // Squares are kept only where a variance is asked for. The buffers are
+    // left uninitialised here and zeroed tile by tile by the workers in the
+    // first pass: a serial memset of a large image would cost as much as a
+    // few samples per pixel, and first touch on the worker places the pages.
+    const size_t npix = size_t(W) * H;
+    HugeDoubles sum(npix * stride), sum2(npix * var_stride);
 
     struct Tile {
         int x0, y0, x1, y1;
@@ -61,30 +100,40 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     tbb::task_arena arena(st.threads > 0 ? st.threads : tbb::task_arena::automatic);
     long long done = 0;  // samples per pixel finished
     const auto cancelled = [&] { return st.cancel && st.cancel->load(); };
+    bool first_pass = true;
     auto run_pass = [&](long long first, long long count) {
         arena.execute([&] {
             tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
                 const Tile& t = tiles[ti];
-                std::vector<float> v(stride);
+                float v[64];
+                std::vector<float> v_heap;
+                float* vp = v;
+                if (stride > 64) v_heap.resize(stride), vp = v_heap.data();
                 uint64_t local_rays = 0, local_nan = 0;
                 for (int y = t.y0; y < t.y1; ++y)
                     for (int x = t.x0; x < t.x1; ++x) {
                         double* ps = &sum[(size_t(y) * W + x) * stride];
-                        double* pq = &sum2[(size_t(y) * W + x) * stride];
+                        double* pq = &sum2[(size_t(y) * W + x) * var_stride];
+                        if (first_pass) {
+                            std::fill(ps, ps + stride, 0.0);
+                            std::fill(pq, pq + var_stride, 0.0);
+                        }
                         for (long long i = first; i < first + count; ++i) {
-                            std::fill(v.begin(), v.end(), 0.f);
+                            std::fill(vp, vp + stride, 0.f);
                             Sampler sampler(SampleKey{st.seed, uint32_t(x), uint32_t(y), uint32_t(i)});
-                            sample(scene, x, y, sampler, v.data(), local_rays);
+                            sample(scene, x, y, sampler, vp, local_rays);
                             bool ok = true;
-                            for (float f : v) ok &= std::isfinite(f);
-                            if (!ok) {
+                            for (int k = 0; k < stride; ++k) ok &= std::isfinite(vp[k]);
+                            if (!ok) [[unlikely]] {
                                 // A NaN/Inf sample is reported with its pixel and dropped as zero.
                                 ++local_nan;
                                 std::lock_guard<std::mutex> lock(nan_mutex);
                                 if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
                                 continue;
                             }
-                            for (int k = 0; k < stride; ++k) ps[k] += v[k], pq[k] += double(v[k]) * v[k];
+                            for (int k = 0; k < stride; ++k) ps[k] += vp[k];
+                            for (int k = 0; k < stride; ++k)
+                                if (var_index[k] >= 0) pq[var_index[k]] += double(vp[k]) * vp[k];
                         }
                     }
                 rays += local_rays;
@@ -99,6 +148,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 }
             });
         });
+        first_pass = false;
     };
 
     if (timed) {
@@ -122,20 +172,30 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     acc.specs = specs;
     acc.spp = done;
     for (size_t s = 0; s < specs.size(); ++s) {
-        Image m(W, H, specs[s].channels), var;
-        if (specs[s].variance) var = Image(W, H, specs[s].channels);
-        for (size_t p = 0; p < size_t(W) * H; ++p)
-            for (int c = 0; c < specs[s].channels; ++c) {
-                const double a = sum[p * stride + offset[s] + c], b = sum2[p * stride + offset[s] + c];
-                const double mean = a / double(done);
-                m.values()[p * specs[s].channels + c] = float(mean);
-                if (specs[s].variance)
-                    var.values()[p * specs[s].channels + c] =
-                        done > 1 ? float(std::max(0.0, (b - a * mean) / double(done - 1))) : 0.f;
-            }
-        acc.mean.push_back(std::move(m));
-        acc.variance.push_back(std::move(var));
+        acc.mean.emplace_back(W, H, specs[s].channels);
+        acc.variance.emplace_back();
+        if (specs[s].variance) acc.variance.back() = Image(W, H, specs[s].channels);
     }
+    // Means and variances per row in parallel (each row writes only its own pixels).
+    arena.execute([&] {
+        tbb::parallel_for(0, H, [&](int y) {
+            for (size_t p = size_t(y) * W; p < size_t(y + 1) * W; ++p)
+                for (size_t s = 0; s < specs.size(); ++s) {
+                    const int ch = specs[s].channels;
+                    float* m = acc.mean[s].data() + p * ch;
+                    float* var = specs[s].variance ? acc.variance[s].data() + p * ch : nullptr;
+                    for (int c = 0; c < ch; ++c) {
+                        const double a = sum[p * stride + offset[s] + c];
+                        const double mean = a / double(done);
+                        m[c] = float(mean);
+                        if (var) {
+                            const double b = sum2[p * var_stride + var_offset[s] + c];
+                            var[c] = done > 1 ? float(std::max(0.0, (b - a * mean) / double(done - 1))) : 0.f;
+                        }
+                    }
+                }
+        });
+    });
     out = FrameBuffer(W, H);
     finalize(acc, out);
     out.add("spp", 1);
