@@ -1,0 +1,133 @@
+// Isotropic GGX (Trowbridge-Reitz) microfacet distribution, Smith masking,
+// visible-normal sampling and Fresnel terms. All directions are unit vectors
+// in the local shading frame (z = macro-surface normal). `alpha` is the GGX
+// roughness (alpha = 0 would be a perfect mirror; callers keep it >= kMinGgxAlpha).
+// References: Walter et al. 2007 "Microfacet models for refraction through
+// rough surfaces" (EGSR); Heitz 2014 "Understanding the masking-shadowing
+// function" (JCGT 3(2)); Heitz 2018 "Sampling the GGX distribution of visible
+// normals" (JCGT 7(4)).
+#pragma once
+
+#include "gdr/core/math.h"
+
+namespace gdr {
+
+/// Smallest GGX alpha the microfacet code is used with: below it D overflows
+/// float precision and the lobe is treated as a delta (mirror) by the factories.
+inline constexpr float kMinGgxAlpha = 1e-4f;
+
+/// GGX normal distribution D(m) (1/sr), normalised so that the projected
+/// microfacet area integrates to one: integral D(m) cos(theta_m) dm = 1 (Walter eq. 33).
+inline float ggx_d(const Vec3& m, float alpha) {
+    if (m.z <= 0.f) return 0.f;
+    const float a2 = alpha * alpha;
+    const float cos2 = m.z * m.z;
+    const float k = cos2 * (a2 - 1.f) + 1.f;  // = cos^2 (a2 + tan^2) form without the tan singularity
+    return a2 / (kPi * k * k);
+}
+
+/// Smith Lambda(w) for GGX (Heitz 2014 eq. 72): the ratio of shadowed to
+/// visible projected microfacet area; unitless, >= 0.
+inline float ggx_lambda(const Vec3& w, float alpha) {
+    const float cos2 = w.z * w.z;
+    if (cos2 <= 0.f) return kInf;
+    const float tan2 = std::max(0.f, 1.f - cos2) / cos2;
+    return 0.5f * (std::sqrt(1.f + alpha * alpha * tan2) - 1.f);
+}
+
+/// Smith masking G1(w, m) for GGX (unitless in [0,1]); zero when the microfacet
+/// m is seen from its back side relative to the macro-surface side of w.
+inline float smith_g1(const Vec3& w, const Vec3& m, float alpha) {
+    if (glm::dot(w, m) * w.z <= 0.f) return 0.f;
+    return 1.f / (1.f + ggx_lambda(w, alpha));
+}
+
+/// Height-correlated Smith masking-shadowing G2(wo, wi, m) (Heitz 2014 eq. 99),
+/// unitless in [0,1]. Chosen over the separable form G1*G1 because it does not
+/// double-count the correlation between masking and shadowing, so rough lobes
+/// lose less energy than the separable form predicts (closer to ground truth).
+inline float smith_g2(const Vec3& wo, const Vec3& wi, const Vec3& m, float alpha) {
+    if (glm::dot(wo, m) * wo.z <= 0.f || glm::dot(wi, m) * wi.z <= 0.f) return 0.f;
+    return 1.f / (1.f + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha));
+}
+
+/// Samples a microfacet normal m from the distribution of normals visible from
+/// wo, D_wo(m) = G1(wo,m) max(0, wo.m) D(m) / wo.z (Heitz 2018, listing 1).
+/// wo must lie in the upper hemisphere; u in [0,1)^2. Returns m with m.z >= 0.
+inline Vec3 ggx_sample_visible_normal(const Vec3& wo, float alpha, const Vec2& u) {
+    // Stretch to the alpha = 1 configuration, where visible normals are a projected hemisphere.
+    const Vec3 vh = glm::normalize(Vec3(alpha * wo.x, alpha * wo.y, wo.z));
+    const float lensq = vh.x * vh.x + vh.y * vh.y;
+    const Vec3 t1 = lensq > 0.f ? Vec3(-vh.y, vh.x, 0.f) / std::sqrt(lensq) : Vec3(1.f, 0.f, 0.f);
+    const Vec3 t2 = glm::cross(vh, t1);
+    // Uniform disk point, then warp the half of the disk hidden by the projection.
+    const float r = std::sqrt(u.x);
+    const float phi = 2.f * kPi * u.y;
+    const float p1 = r * std::cos(phi);
+    float p2 = r * std::sin(phi);
+    const float s = 0.5f * (1.f + vh.z);
+    p2 = (1.f - s) * safe_sqrt(1.f - p1 * p1) + s * p2;
+    const Vec3 nh = p1 * t1 + p2 * t2 + safe_sqrt(1.f - p1 * p1 - p2 * p2) * vh;
+    // Unstretch back to the alpha ellipsoid.
+    return glm::normalize(Vec3(alpha * nh.x, alpha * nh.y, std::max(1e-7f, nh.z)));
+}
+
+/// Solid-angle density of ggx_sample_visible_normal producing m (1/sr, over microfacet normals).
+inline float ggx_visible_normal_pdf(const Vec3& wo, const Vec3& m, float alpha) {
+    if (wo.z <= 0.f) return 0.f;
+    return smith_g1(wo, m, alpha) * std::max(0.f, glm::dot(wo, m)) * ggx_d(m, alpha) / wo.z;
+}
+
+/// Solid-angle density (1/sr) of reflecting wo about a visible normal sampled by
+/// ggx_sample_visible_normal: D_wo(h) / (4 wo.h), the Jacobian of h -> wi
+/// (Walter eq. 14). Both directions must be in the upper hemisphere.
+inline float ggx_reflection_pdf(const Vec3& wo, const Vec3& wi, float alpha) {
+    if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
+    const Vec3 h = glm::normalize(wo + wi);
+    const float wo_h = glm::dot(wo, h);
+    if (wo_h <= 0.f) return 0.f;
+    return ggx_visible_normal_pdf(wo, h, alpha) / (4.f * wo_h);
+}
+
+/// GGX reflection BSDF without Fresnel, D G2 / (4 cos_o cos_i) (1/sr, Walter
+/// eq. 20); both directions in the upper hemisphere, else 0.
+inline float ggx_reflection_eval(const Vec3& wo, const Vec3& wi, float alpha) {
+    if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
+    const Vec3 h = glm::normalize(wo + wi);
+    return ggx_d(h, alpha) * smith_g2(wo, wi, h, alpha) / (4.f * wo.z * wi.z);
+}
+
+/// Schlick's approximation of conductor Fresnel reflectance (unitless RGB)
+/// for normal reflectance f0 at |cos| of the angle between w and the microfacet normal.
+inline Color fresnel_schlick(const Color& f0, float cos_theta) {
+    const float c = std::clamp(1.f - std::abs(cos_theta), 0.f, 1.f);
+    const float c5 = (c * c) * (c * c) * c;
+    return f0 + (Color(1.f) - f0) * c5;
+}
+
+/// Exact unpolarised Fresnel reflectance (unitless in [0,1]) of a smooth
+/// dielectric interface. cos_i = cosine of the incident direction with the
+/// normal on its own side (> 0); eta = eta_transmitted / eta_incident.
+/// Returns 1 on total internal reflection; cos_t receives the (positive)
+/// cosine of the refracted direction (0 on TIR).
+inline float fresnel_dielectric(float cos_i, float eta, float& cos_t) {
+    cos_i = std::clamp(cos_i, 0.f, 1.f);
+    const float sin2_t = (1.f - cos_i * cos_i) / (eta * eta);
+    if (sin2_t >= 1.f) {
+        cos_t = 0.f;
+        return 1.f;
+    }
+    cos_t = std::sqrt(1.f - sin2_t);
+    // Amplitude ratios for s- and p-polarised light (Fresnel equations).
+    const float rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    const float rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5f * (rs * rs + rp * rp);
+}
+
+/// fresnel_dielectric without the refracted cosine.
+inline float fresnel_dielectric(float cos_i, float eta) {
+    float cos_t;
+    return fresnel_dielectric(cos_i, eta, cos_t);
+}
+
+}  // namespace gdr

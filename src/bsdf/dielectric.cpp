@@ -1,0 +1,94 @@
+// Smooth dielectric interface (MTL illum 7): delta reflection and refraction
+// weighted by the exact unpolarised Fresnel term. Oriented: z > 0 is outside,
+// eta = eta_inside / eta_outside.
+#include "gdr/core/error.h"
+#include "gdr/scene/bsdf.h"
+#include "gdr/scene/microfacet.h"
+
+namespace gdr {
+namespace {
+
+/// See mirror.cpp: tolerance (distance of unit vectors) for eval_delta.
+constexpr float kDeltaTolerance = 1e-3f;
+
+/// Reflects with probability F and refracts with probability 1 - F, so the
+/// throughput f |cos| / pdf is 1 for reflection and 1/eta_rel^2 for refraction
+/// (radiance is compressed into the smaller solid angle of the denser side).
+class Dielectric final : public Bsdf {
+public:
+    explicit Dielectric(float eta) : eta_(eta) {}
+
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2&, float u_lobe, const Vec2&) const override {
+        if (wo.z == 0.f) return std::nullopt;
+        const Geometry g = geometry(wo);
+        if (u_lobe < g.F) return reflection(wo, g);
+        return transmission(wo, g);
+    }
+
+    Color eval(const Vec3&, const Vec3&, const Vec2&) const override { return Color(0.f); }
+    float pdf(const Vec3&, const Vec3&, const Vec2&) const override { return 0.f; }
+
+    std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+        if (wo.z == 0.f || wi.z == 0.f) return std::nullopt;
+        const Geometry g = geometry(wo);
+        auto s = same_hemisphere(wo, wi) ? reflection(wo, g) : transmission(wo, g);
+        if (!s || glm::length(s->wi - wi) > kDeltaTolerance) return std::nullopt;
+        return s;
+    }
+
+    uint32_t flags() const override { return kReflection | kTransmission | kSpecular; }
+    Color albedo(const Vec2&) const override { return Color(1.f); }
+    float min_roughness() const override { return 0.f; }
+    float eta() const override { return eta_; }
+
+private:
+    struct Geometry {
+        float eta_rel;  // eta of wi's side / eta of wo's side for refraction
+        float F;        // Fresnel reflectance (1 on total internal reflection)
+        float cos_t;    // |cos| of the refracted direction
+    };
+
+    Geometry geometry(const Vec3& wo) const {
+        Geometry g;
+        g.eta_rel = wo.z > 0.f ? eta_ : 1.f / eta_;
+        g.F = fresnel_dielectric(std::abs(wo.z), g.eta_rel, g.cos_t);
+        return g;
+    }
+
+    static std::optional<BsdfSample> reflection(const Vec3& wo, const Geometry& g) {
+        if (g.F <= 0.f) return std::nullopt;
+        BsdfSample s;
+        s.wi = Vec3(-wo.x, -wo.y, wo.z);
+        s.pdf = g.F;
+        s.f = Color(g.F / std::abs(wo.z));
+        s.eta = 1.f;
+        s.lobe = kReflection | kSpecular;
+        s.roughness = 0.f;
+        return s;
+    }
+
+    static std::optional<BsdfSample> transmission(const Vec3& wo, const Geometry& g) {
+        if (g.F >= 1.f || g.cos_t <= 0.f) return std::nullopt;  // total internal reflection
+        BsdfSample s;
+        // Snell: the tangential component shrinks by 1/eta_rel, the normal one flips side.
+        s.wi = Vec3(-wo.x / g.eta_rel, -wo.y / g.eta_rel, wo.z > 0.f ? -g.cos_t : g.cos_t);
+        s.pdf = 1.f - g.F;
+        s.f = Color((1.f - g.F) / (g.eta_rel * g.eta_rel) / g.cos_t);
+        s.eta = g.eta_rel;
+        s.lobe = kTransmission | kSpecular;
+        s.roughness = 0.f;
+        return s;
+    }
+
+    float eta_;
+};
+
+}  // namespace
+
+std::shared_ptr<Bsdf> make_dielectric(float eta) {
+    if (!(eta > 0.f) || !std::isfinite(eta))
+        throw ParameterError("dielectric: index of refraction must be a positive number, got " + std::to_string(eta));
+    return std::make_shared<Dielectric>(eta);
+}
+
+}  // namespace gdr

@@ -1,0 +1,54 @@
+// Lambertian (ideal diffuse) reflection, two-sided, with a textured albedo.
+#include "gdr/scene/bsdf.h"
+#include "gdr/scene/warp.h"
+
+namespace gdr {
+namespace {
+
+/// f = kd / pi on the side of wo; cosine-weighted sampling makes f cos / pdf = kd.
+class Lambertian final : public Bsdf {
+public:
+    explicit Lambertian(std::shared_ptr<Texture> kd) : kd_(std::move(kd)) {}
+
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
+        if (wo.z == 0.f) return std::nullopt;
+        Vec3 wi = warp::square_to_cosine_hemisphere(u);
+        if (wi.z <= 0.f) return std::nullopt;  // grazing sample: zero pdf, would divide by 0
+        const float pdf = warp::cosine_hemisphere_pdf(wi);
+        if (wo.z < 0.f) wi.z = -wi.z;  // two-sided: scatter back to wo's side
+        BsdfSample s;
+        s.wi = wi;
+        s.f = kd_->eval(uv) * kInvPi;
+        s.pdf = pdf;
+        s.eta = 1.f;
+        s.lobe = kReflection | kDiffuse;
+        s.roughness = 1.f;
+        return s;
+    }
+
+    Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (!same_hemisphere(wo, wi)) return Color(0.f);
+        return kd_->eval(uv) * kInvPi;
+    }
+
+    float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+        if (!same_hemisphere(wo, wi)) return 0.f;
+        return abs_cos_theta(wi) * kInvPi;
+    }
+
+    uint32_t flags() const override { return kReflection | kDiffuse; }
+    Color albedo(const Vec2& uv) const override { return kd_->eval(uv); }
+    float min_roughness() const override { return 1.f; }
+
+private:
+    std::shared_ptr<Texture> kd_;
+};
+
+}  // namespace
+
+std::shared_ptr<Bsdf> make_lambertian(std::shared_ptr<Texture> kd) {
+    if (!kd) kd = make_constant_texture(Color(0.f));
+    return std::make_shared<Lambertian>(std::move(kd));
+}
+
+}  // namespace gdr

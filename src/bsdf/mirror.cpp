@@ -1,0 +1,55 @@
+// Ideal mirror (MTL illum 5): a single delta reflection lobe, two-sided.
+#include "gdr/scene/bsdf.h"
+
+namespace gdr {
+namespace {
+
+/// Direction tolerance (Euclidean distance of unit vectors) for recognising a
+/// wi as the mirror direction in eval_delta; loose enough for float round-off
+/// of a direction that went through world<->local frames and ray offsets.
+constexpr float kDeltaTolerance = 1e-3f;
+
+/// Perfect specular reflection of reflectance r (no Fresnel, as MTL illum 5).
+class Mirror final : public Bsdf {
+public:
+    explicit Mirror(const Color& r) : r_(r) {}
+
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2&, float, const Vec2&) const override {
+        if (wo.z == 0.f) return std::nullopt;
+        return make(Vec3(-wo.x, -wo.y, wo.z));
+    }
+
+    Color eval(const Vec3&, const Vec3&, const Vec2&) const override { return Color(0.f); }
+    float pdf(const Vec3&, const Vec3&, const Vec2&) const override { return 0.f; }
+
+    std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+        if (wo.z == 0.f || !same_hemisphere(wo, wi)) return std::nullopt;
+        const Vec3 wr(-wo.x, -wo.y, wo.z);
+        if (glm::length(wi - wr) > kDeltaTolerance) return std::nullopt;
+        return make(wr);  // the exact mirror direction, so f matches sample() bit for bit
+    }
+
+    uint32_t flags() const override { return kReflection | kSpecular; }
+    Color albedo(const Vec2&) const override { return r_; }
+    float min_roughness() const override { return 0.f; }
+
+private:
+    BsdfSample make(const Vec3& wi) const {
+        BsdfSample s;
+        s.wi = wi;
+        s.f = r_ / abs_cos_theta(wi);  // so that f |cos| / pdf = r
+        s.pdf = 1.f;
+        s.eta = 1.f;
+        s.lobe = kReflection | kSpecular;
+        s.roughness = 0.f;
+        return s;
+    }
+
+    Color r_;
+};
+
+}  // namespace
+
+std::shared_ptr<Bsdf> make_mirror(const Color& r) { return std::make_shared<Mirror>(r); }
+
+}  // namespace gdr
