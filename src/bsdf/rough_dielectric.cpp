@@ -12,7 +12,7 @@ namespace {
 /// or refraction is then chosen with probability F(wo.m) / 1 - F(wo.m), so
 /// the pdf of wi is F * D_wo(m) * |dm/dwi| with the reflection Jacobian
 /// 1 / (4 |wo.m|) (Walter eq. 14) or the refraction Jacobian
-/// |wi.m| / (wi.m + wo.m / eta_rel)^2 (Walter eq. 17 divided by eta_wi^2).
+/// |wi.m| / (wi.m + wo.m / eta_rel)^2 (Walter eq. 17 in relative-index form).
 class RoughDielectric final : public Bsdf {
 public:
     RoughDielectric(float eta, float alpha) : eta_(eta), alpha_(alpha) {}
