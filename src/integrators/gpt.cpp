@@ -29,65 +29,102 @@ void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
 
 }  // namespace
 
-PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const OffsetPath* y, const GradientMis& mis) {
+void compute_base_terms(const Scene& scene, const CameraPath& x, BaseTerms& t) {
+    t.v.assign(x.size(), BaseTerms::Vertex{});
+    Color beta(1.f);
+    for (size_t k = 0; k < x.size(); ++k) {
+        const PathVertex& X = x.v[k];
+        BaseTerms::Vertex& T = t.v[k];
+        T.beta = beta;
+        if (k >= 1) {
+            const PathVertex& P = x.v[k - 1];
+            T.emit = beta * X.emitted;
+            T.emit_pdf_bsdf = P.bs.pdf;
+            if (!P.bs.is_delta() && P.nee.valid && !is_black(X.emitted)) T.emit_pdf_light = light_pdf_w(scene, P.si.p, X.si);
+        }
+        if (X.nee.valid) {
+            const LightSample& ls = X.nee.light;
+            const Vec3 d = ls.p - X.si.p;
+            const float dist = glm::length(d);
+            T.nee_pdf_light = dist > 0.f ? pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist)) : 0.0;
+            if (T.nee_pdf_light > 0.0) {
+                const Bsdf& bsdf = *X.si.material->bsdf;
+                const Vec3 wi = X.si.frame.to_local(d / dist);
+                T.nee_pdf_bsdf = bsdf.pdf(X.wo, wi, X.si.uv);
+                if (X.nee.visible) {
+                    T.nee_unit = bsdf.eval(X.wo, wi, X.si.uv) * abs_cos_theta(wi) * ls.radiance * float(1.0 / T.nee_pdf_light);
+                    T.nee = beta * T.nee_unit;
+                }
+            }
+        }
+        if (!X.scattered) break;
+        beta *= scatter_weight(X);
+    }
+}
+
+PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& t, const OffsetPath* y,
+                           const GradientMis& mis) {
     PairEstimate e;
-    Color beta_x(1.f), beta_y(1.f);
+    Color beta_y(1.f);
     double r = 1.0, r_prev = 1.0;  // offset prefix density / base prefix density (through k-1, k-2)
     const size_t m = y ? y->size() : 0;
     bool y_alive = m > 0;
     for (size_t k = 0; k < x.size(); ++k) {
         const PathVertex& X = x.v[k];
+        const BaseTerms::Vertex& T = t.v[k];
         const bool has_y = y_alive && k < m;
+        // In the shared suffix the offset is the base with its own throughput and prefix density.
+        const bool merged = has_y && y->merged(k);
 
         // Emitter reached by BSDF sampling at x_{k-1}.
         if (k >= 1) {
-            const PathVertex& P = x.v[k - 1];
-            const Color cx = beta_x * X.emitted;
             Color cy(0.f);
             double b_b = 0.0, b_l = 0.0;
-            if (has_y) {
+            if (merged) {
+                cy = beta_y * X.emitted;
+                if (k == y->merged_from) {
+                    const ShiftStep& S = y->v[k - 1].step;  // left the shared vertex with its own incoming direction
+                    b_b = double(S.pdf) * S.jacobian;
+                    b_l = T.emit_pdf_light * S.jacobian;
+                } else {
+                    b_b = T.emit_pdf_bsdf, b_l = T.emit_pdf_light;
+                }
+            } else if (has_y) {
                 const OffsetRecord& Y = y->v[k];
                 const ShiftStep& S = y->v[k - 1].step;
                 cy = beta_y * Y.y.emitted;
+                // The offset's densities weigh the base even where the offset itself contributes nothing.
                 b_b = double(S.pdf) * S.jacobian;
                 const OffsetVertex& Yp = y->v[k - 1].y;
                 if (!S.delta && Y.y.si.is_emitter() && scene.has_lights() && !Yp.si.material->bsdf->is_pure_delta())
                     b_l = light_pdf_w(scene, Yp.si.p, Y.y.si) * S.jacobian;
             }
-            if (!is_black(cx) || !is_black(cy)) {
-                const double a_b = P.bs.pdf;
-                const double a_l = (!P.bs.is_delta() && P.nee.valid) ? light_pdf_w(scene, P.si.p, X.si) : 0.0;
-                add(e, gradient_mis_weight(mis, a_b, a_l, b_b, b_l, r_prev), cx, cy);
-            }
+            if (!is_black(T.emit) || !is_black(cy))
+                add(e, gradient_mis_weight(mis, T.emit_pdf_bsdf, T.emit_pdf_light, b_b, b_l, r_prev), T.emit, cy);
         }
 
         // Light sample at x_k, shared with the offset.
-        if (X.nee.valid) {
-            const LightSample& ls = X.nee.light;
-            const Vec3 d = ls.p - X.si.p;
-            const float dist = glm::length(d);
-            const double pdf_l = dist > 0.f ? pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist)) : 0.0;
-            if (pdf_l > 0.0) {
-                const Bsdf& bsdf = *X.si.material->bsdf;
-                const Vec3 wi = X.si.frame.to_local(d / dist);
-                Color cx(0.f), cy(0.f);
-                if (X.nee.visible) cx = beta_x * bsdf.eval(X.wo, wi, X.si.uv) * abs_cos_theta(wi) * ls.radiance * float(1.0 / pdf_l);
-                double b_l = 0.0, b_b = 0.0;
-                if (has_y && y->v[k].nee) {
-                    const OffsetRecord& R = y->v[k];
-                    b_l = R.nee_pdf_light_w * R.nee_jacobian;
-                    b_b = double(R.nee_pdf_bsdf) * R.nee_jacobian;
-                    cy = beta_y * R.nee_f * R.nee_cos * R.nee_radiance * float(R.nee_jacobian / pdf_l);
-                }
-                if (!is_black(cx) || !is_black(cy))
-                    add(e, gradient_mis_weight(mis, pdf_l, bsdf.pdf(X.wo, wi, X.si.uv), b_l, b_b, r), cx, cy);
+        if (T.nee_pdf_light > 0.0) {
+            Color cy(0.f);
+            double b_l = 0.0, b_b = 0.0;
+            if (merged) {
+                cy = beta_y * T.nee_unit;
+                b_l = T.nee_pdf_light, b_b = T.nee_pdf_bsdf;
+            } else if (has_y && y->v[k].nee) {
+                const OffsetRecord& R = y->v[k];
+                b_l = R.nee_pdf_light_w * R.nee_jacobian;
+                b_b = double(R.nee_pdf_bsdf) * R.nee_jacobian;
+                cy = beta_y * R.nee_f * R.nee_cos * R.nee_radiance * float(R.nee_jacobian / T.nee_pdf_light);
             }
+            if (!is_black(T.nee) || !is_black(cy))
+                add(e, gradient_mis_weight(mis, T.nee_pdf_light, T.nee_pdf_bsdf, b_l, b_b, r), T.nee, cy);
         }
 
         if (!X.scattered) break;
-        beta_x *= scatter_weight(X);
         r_prev = r;
-        if (has_y) {
+        if (merged) {
+            beta_y *= scatter_weight(X);
+        } else if (has_y) {
             const ShiftStep& S = y->v[k].step;
             if (S.kind == ShiftStep::Kind::Fail || k + 1 >= m) {
                 y_alive = false;
@@ -149,6 +186,7 @@ protected:
     void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
         thread_local CameraPath path;
         thread_local OffsetPath offset;
+        thread_local BaseTerms terms;
         sampler.set_dimension(dims::kFilm);
         const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
         trace_camera_path(scene, film, sampler, trace_, path);
@@ -158,7 +196,8 @@ protected:
         auto put = [&](int slot, const Color& c) {
             out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
         };
-        const PairEstimate alone = evaluate_pair(scene, path, nullptr, mis_);
+        compute_base_terms(scene, path, terms);
+        const PairEstimate alone = evaluate_pair(scene, path, terms, nullptr, mis_);
         put(0, alone.base);
         const int W = scene.camera().width(), H = scene.camera().height();
         for (int d = 0; d < kDirs; ++d) {
@@ -170,7 +209,7 @@ protected:
             }
             shift_camera_path(scene, *shift_, config_, path, Vec2(float(kDx[d]), float(kDy[d])), offset);
             rays += offset.rays;
-            const PairEstimate e = evaluate_pair(scene, path, &offset, mis_);
+            const PairEstimate e = evaluate_pair(scene, path, terms, &offset, mis_);
             put(1, 0.25f * e.base);
             put(2 + d, e.gradient);
             put(2 + kDirs + d, 0.25f * e.offset);
@@ -195,6 +234,12 @@ protected:
         Image primal(W, H, 3), primal_var(W, H, 3), dx(W, H, 3), dy(W, H, 3), dx_var(W, H, 3), dy_var(W, H, 3);
         const Image& self = acc.mean_of("self");
         const Image& self_v = acc.variance_of("self");
+        const Image* splat[kDirs];
+        const Image* splat_v[kDirs];
+        for (int d = 0; d < kDirs; ++d) splat[d] = &acc.mean_of(kSplatSlot[d]), splat_v[d] = &acc.variance_of(kSplatSlot[d]);
+        const Image &gpx = acc.mean_of("g+x"), &gmx = acc.mean_of("g-x"), &gpy = acc.mean_of("g+y"), &gmy = acc.mean_of("g-y");
+        const Image &vpx = acc.variance_of("g+x"), &vmx = acc.variance_of("g-x"), &vpy = acc.variance_of("g+y"),
+                    &vmy = acc.variance_of("g-y");
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
                 Color p = self.rgb(x, y), pv = self_v.rgb(x, y);
@@ -202,19 +247,19 @@ protected:
                 for (int d = 0; d < kDirs; ++d) {
                     const int qx = x - kDx[d], qy = y - kDy[d];
                     if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-                    p += acc.mean_of(kSplatSlot[d]).rgb(qx, qy);
-                    pv += acc.variance_of(kSplatSlot[d]).rgb(qx, qy);
+                    p += splat[d]->rgb(qx, qy);
+                    pv += splat_v[d]->rgb(qx, qy);
                 }
                 primal.set_rgb(x, y, p);
                 primal_var.set_rgb(x, y, pv);
                 // dx(x) = I(x+1) - I(x): from x shifted right, minus from x+1 shifted left.
                 if (x + 1 < W) {
-                    dx.set_rgb(x, y, acc.mean_of("g+x").rgb(x, y) - acc.mean_of("g-x").rgb(x + 1, y));
-                    dx_var.set_rgb(x, y, acc.variance_of("g+x").rgb(x, y) + acc.variance_of("g-x").rgb(x + 1, y));
+                    dx.set_rgb(x, y, gpx.rgb(x, y) - gmx.rgb(x + 1, y));
+                    dx_var.set_rgb(x, y, vpx.rgb(x, y) + vmx.rgb(x + 1, y));
                 }
                 if (y + 1 < H) {
-                    dy.set_rgb(x, y, acc.mean_of("g+y").rgb(x, y) - acc.mean_of("g-y").rgb(x, y + 1));
-                    dy_var.set_rgb(x, y, acc.variance_of("g+y").rgb(x, y) + acc.variance_of("g-y").rgb(x, y + 1));
+                    dy.set_rgb(x, y, gpy.rgb(x, y) - gmy.rgb(x, y + 1));
+                    dy_var.set_rgb(x, y, vpy.rgb(x, y) + vmy.rgb(x, y + 1));
                 }
             }
         const Image& direct = acc.mean_of("direct");

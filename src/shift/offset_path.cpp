@@ -59,21 +59,18 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
 }
 
 // The offset vertex that coincides with base vertex x_{k+1}, entered from `from`.
-OffsetVertex vertex_on_base(const PathVertex& next, const Vec3& from, bool merged) {
+OffsetVertex vertex_on_base(const PathVertex& next, const Vec3& from) {
     OffsetVertex v;
     v.si = next.si;
     v.on_base = true;
-    v.merged = merged;
-    if (merged) {
-        v.wo = next.wo;
-        v.emitted = next.emitted;
-    } else {
-        const Vec3 w = glm::normalize(from - next.si.p);
-        v.wo = next.si.frame.to_local(w);
-        v.emitted = next.si.is_emitter() ? next.si.emitted(w) : Color(0.f);
-    }
+    const Vec3 w = glm::normalize(from - next.si.p);
+    v.wo = next.si.frame.to_local(w);
+    v.emitted = next.si.is_emitter() ? next.si.emitted(w) : Color(0.f);
     return v;
 }
+
+void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                 const Vec2& pixel_offset, OffsetPath& out);
 
 OffsetRecord record_at(const OffsetVertex& v) {
     OffsetRecord r;
@@ -87,6 +84,15 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
                        const Vec2& pixel_offset, OffsetPath& out) {
     out.v.clear();
     out.rays = 0;
+    out.merged_from = size_t(-1);
+    walk_offset(scene, shift, config, base, pixel_offset, out);
+    out.length = out.merged_from != size_t(-1) ? base.size() : out.v.size();
+}
+
+namespace {
+
+void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                 const Vec2& pixel_offset, OffsetPath& out) {
     if (base.size() == 0) return;
     out.v.reserve(base.size());
     {
@@ -106,12 +112,6 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
         const PathVertex& next = base.v[k + 1];
         const OffsetVertex& y = rec.y;
         ShiftStep& s = rec.step;
-        if (y.merged) {
-            s.kind = ShiftStep::Kind::Direction;
-            s.wi = x.bs.wi, s.f = x.bs.f, s.pdf = x.bs.pdf, s.delta = x.bs.is_delta(), s.jacobian = 1.0;
-            out.v.push_back(record_at(vertex_on_base(next, x.si.p, true)));
-            continue;
-        }
         if (y.on_base) {
             // Reconnected at x_k: same outgoing direction, own incoming one.
             s.wi = x.bs.wi;
@@ -126,14 +126,14 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
             }
             if (is_black(s.f)) return;
             s.kind = ShiftStep::Kind::Direction;
-            out.v.push_back(record_at(vertex_on_base(next, x.si.p, true)));
-            continue;
+            out.merged_from = k + 1;  // same vertex, same outgoing direction: y is x from here on
+            return;
         }
         s = shift.step(ShiftStepInput{scene, config, base, k, y});
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
-            out.v.push_back(record_at(vertex_on_base(next, y.si.p, false)));
+            out.v.push_back(record_at(vertex_on_base(next, y.si.p)));
             continue;
         }
         OffsetRecord nr;
@@ -153,6 +153,8 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
         out.v.push_back(nr);
     }
 }
+
+}  // namespace
 
 void register_builtin_shifts(Registry<Shift>& r) {
     r.add("half-vector", "reconnection where possible, half-vector copy through glossy/specular vertices (PI)",

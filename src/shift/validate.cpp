@@ -83,6 +83,10 @@ CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& of
     p.film = x.film + offset;
     for (size_t k = 0; k < y.size(); ++k) {
         PathVertex v = x.v[k];
+        if (y.merged(k)) {
+            p.v.push_back(v);  // the shared suffix is the base's own
+            continue;
+        }
         const OffsetRecord& r = y.v[k];
         v.si = r.y.si;
         v.wo = r.y.wo;
@@ -129,7 +133,7 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
         ++rep.base_paths;
         shift_camera_path(scene, shift, config, x, right, y);
 
-        for (size_t k = 0; k + 1 < y.size(); ++k) {
+        for (size_t k = 0; k + 1 < y.size() && k < y.v.size(); ++k) {
             const OffsetRecord& r = y.v[k];
             if (r.nee && !r.y.on_base && x.v[k].nee.valid && r.nee_jacobian > 0.0) {
                 if (auto j = richardson(o.fd_step, [&](float e) { return fd_light_jacobian(x.v[k], r.y, e); })) {
@@ -172,7 +176,7 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
             continue;
         }
         bool same = true;
-        for (size_t k = 0; k < x.size(); ++k) same &= glm::length(back.v[k].y.si.p - x.v[k].si.p) <= tol;
+        for (size_t k = 0; k < back.v.size(); ++k) same &= glm::length(back.v[k].y.si.p - x.v[k].si.p) <= tol;
         rep.reverse_ok += same;
     }
     if (!errors.empty()) {

@@ -14,10 +14,30 @@ struct PairEstimate {
     Color gradient{0.f};  ///< Sum of w (f(y)|J| - f(x))/q(x): an estimate of I_j - I_i.
 };
 
+/// What the base path contributes at each vertex, computed once and shared by
+/// its four offsets. Densities are solid-angle (1/sr), contributions radiance.
+struct BaseTerms {
+    struct Vertex {
+        Color emit{0.f};        ///< f(x)/q(x) of the emitter hit at x_k by BSDF sampling at x_{k-1}.
+        double emit_pdf_bsdf = 0.0;   ///< BSDF density of that direction at x_{k-1}.
+        double emit_pdf_light = 0.0;  ///< Light-sampling density of it (0 if light sampling could not produce it).
+        Color beta{0.f};        ///< Base throughput up to x_k (before it scatters).
+        Color nee{0.f};         ///< f(x)/q(x) of the light sample at x_k (0 if blocked).
+        Color nee_unit{0.f};    ///< The same without the throughput: f |cos| Le / pdf at x_k.
+        double nee_pdf_light = 0.0;   ///< Light-sampling density of the light direction at x_k.
+        double nee_pdf_bsdf = 0.0;    ///< BSDF density of that direction at x_k.
+    };
+    std::vector<Vertex> v;  ///< One entry per base vertex.
+};
+
+/// Fills `terms` for base path `x`.
+void compute_base_terms(const Scene& scene, const CameraPath& x, BaseTerms& terms);
+
 /// Evaluates every contribution (light sampling and emitter hits, from the second
 /// vertex on: directly visible emitters are left out) of base path `x` and
 /// offset `y` (nullptr or empty = the shift failed: plain path-tracing MIS).
-PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const OffsetPath* y, const GradientMis& mis);
+PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& terms, const OffsetPath* y,
+                           const GradientMis& mis);
 
 /// Registers "gpt".
 void register_gpt(Registry<Integrator>& r);

@@ -23,13 +23,19 @@ struct OffsetRecord {
     ShiftStep step;                 ///< How the offset leaves y_k (kind Fail if it does not).
 };
 
-/// An offset path y = T(x): records for depths 0 .. size()-1; it ends where the
-/// base ends or where a step failed (then f(y) = 0 beyond).
+/// An offset path y = T(x). It ends where the base ends or where a step failed
+/// (f(y) = 0 beyond). Once y has reconnected and its incoming direction at a
+/// shared vertex equals the base's, it is the base from there on: those
+/// vertices get no records (merged_from marks where they begin).
 struct OffsetPath {
-    std::vector<OffsetRecord> v;  ///< Records; v[k] pairs with base.v[k].
-    uint64_t rays = 0;            ///< Rays cast to build it.
+    std::vector<OffsetRecord> v;          ///< Records of the offset's own vertices; v[k] pairs with base.v[k].
+    size_t length = 0;                    ///< Number of offset vertices, shared suffix included.
+    size_t merged_from = size_t(-1);      ///< First depth where y equals x; no records from there on.
+    uint64_t rays = 0;                    ///< Rays cast to build it.
     /// Number of offset vertices.
-    size_t size() const { return v.size(); }
+    size_t size() const { return length; }
+    /// True if depth k belongs to the shared suffix.
+    bool merged(size_t k) const { return k >= merged_from; }
 };
 
 /// Shifts `base` to the pixel displaced by `pixel_offset` (pixel units, e.g. (1,0))

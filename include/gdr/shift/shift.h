@@ -42,8 +42,7 @@ struct OffsetVertex {
     SurfaceInteraction si;       ///< y_k (equals x_k once the offset has reconnected).
     Vec3 wo{0.f};                ///< Local direction from y_k towards y_{k-1}.
     Color emitted{0.f};          ///< Radiance emitted from y_k towards y_{k-1}.
-    bool on_base = false;        ///< y_k is the base vertex x_k (reconnected at or before k).
-    bool merged = false;         ///< And y_{k-1} = x_{k-1} too: the offset equals the base from here on.
+    bool on_base = false;        ///< y_k is the base vertex x_k (reconnected just before k).
 };
 
 /// Everything a shift step may look at: the base path, the current depth and the offset's vertex.
