@@ -34,13 +34,17 @@ std::string usage() {
            "  gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N]\n"
            "             [--seed S] [--set key=value]... [--resume PREVIOUS.exr] [--exposure STOPS] -o OUT.exr\n"
            "  gdr info FILE.exr\n"
+           "  gdr reconstruct IN.exr|NAME-primal.exr [--method poisson-l1|poisson-l2] [--alpha A] [--set k=v] -o OUT.exr\n"
+           "  gdr compare IMAGE.exr REFERENCE.exr [--layer NAME]\n"
            "  gdr check-shift SCENE.json [--shift NAME] [--paths N] [--seed S] [--max-depth D]\n"
            "             [--threshold T] [--probabilistic]\n"
-           "  gdr list                      (integrators and their parameters)\n";
+           "  gdr list                      (integrators, shift mappings and reconstructors)\n";
 }
 
 int list_plugins();
 int check_shift(const std::vector<std::string>& args);
+int reconstruct(const std::vector<std::string>& args);
+int compare(const std::vector<std::string>& args);
 
 int run(const std::vector<std::string>& args) {
     if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
@@ -53,6 +57,8 @@ int run(const std::vector<std::string>& args) {
     if (cmd == "info") return info(rest);
     if (cmd == "list") return list_plugins();
     if (cmd == "check-shift") return check_shift(rest);
+    if (cmd == "reconstruct") return reconstruct(rest);
+    if (cmd == "compare") return compare(rest);
     throw ParameterError("unknown command '" + cmd + "'\n" + usage());
 }
 

@@ -6,6 +6,7 @@
 #include "gdr/integrators/path_dims.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/trace.h"
+#include "gdr/reconstruct/reconstructor.h"
 
 namespace gdr {
 
@@ -158,6 +159,11 @@ public:
         trace_.max_depth = int(p.get_int("max_depth", -1));
         trace_.rr_depth = int(p.get_int("rr_depth", 5));
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
+        const std::string rec = p.get_choice("reconstruct", "l1+l2", {"l1+l2", "l1", "l2", "none"});
+        solve_l1_ = rec == "l1+l2" || rec == "l1";
+        solve_l2_ = rec == "l1+l2" || rec == "l2";
+        alpha_ = p.get_real("alpha", 0.2);
+        if (!(alpha_ > 0.0)) throw ParameterError("gpt: alpha must be positive");
         if (!(config_.threshold >= 0.f)) throw ParameterError("gpt: threshold must be >= 0");
         if (trace_.max_depth == 0 || trace_.max_depth < -1) throw ParameterError("gpt: max_depth must be -1 (unlimited) or >= 1");
         if (trace_.rr_depth < 1) throw ParameterError("gpt: rr_depth must be >= 1");
@@ -168,7 +174,9 @@ public:
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_depth) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
-               "\nprimal=" + (primal_both_ ? "both" : "base") + "\n";
+               "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" +
+               (solve_l1_ ? (solve_l2_ ? "l1+l2" : "l1") : (solve_l2_ ? "l2" : "none")) +
+               "\nalpha=" + std::to_string(alpha_) + "\n";
     }
 
 protected:
@@ -275,6 +283,13 @@ protected:
         out.set("primal_variance", primal_both_ ? primal_var : acc.variance_of("base"));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
+        // The reconstructions, each with the directly visible emitters added back.
+        GradientBuffers gb;
+        gb.primal = &out.get("primal"), gb.dx = &out.get("dx"), gb.dy = &out.get("dy"), gb.direct = &out.get("direct");
+        Params rp("gpt");
+        rp.set("alpha", alpha_);
+        if (solve_l1_) out.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
+        if (solve_l2_) out.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
         out.set("albedo", acc.mean_of("albedo"));
         out.set("normal", acc.mean_of("normal"));
         out.set("depth", acc.mean_of("depth"));
@@ -287,13 +302,15 @@ private:
     GradientMis mis_;
     TraceOptions trace_;
     bool primal_both_ = true;
+    bool solve_l1_ = true, solve_l2_ = true;
+    double alpha_ = 0.2;
 };
 
 }  // namespace
 
 void register_gpt(Registry<Integrator>& r) {
     r.add("gpt",
-          "gradient-domain path tracing (params: shift, threshold, classification, mis, max_depth, rr_depth, primal)",
+          "gradient-domain path tracing (params: shift, threshold, classification, mis, max_depth, rr_depth, primal, reconstruct, alpha)",
           [](const Params& p) { return std::make_unique<GradientPathTracer>(p); });
 }
 
