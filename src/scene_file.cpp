@@ -1,5 +1,7 @@
 #include "gdr/io/scene_file.h"
 
+#include <charconv>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -33,6 +35,15 @@ void check_keys(const std::string& file, const std::string& where, const json& o
 float get_number(const std::string& file, const json& j, const std::string& key) {
     if (!j.is_number()) fail(file, "'" + key + "' must be a number");
     return j.get<float>();
+}
+
+// A whole number of at least `min` (resolutions, sample counts): 8.5 or "8" is an error, not 8.
+long long get_integer(const std::string& file, const json& j, const std::string& key, long long min) {
+    if (!j.is_number_integer() && !(j.is_number_float() && std::floor(j.get<double>()) == j.get<double>()))
+        fail(file, "'" + key + "' must be an integer");
+    const double v = j.get<double>();
+    if (v < double(min) || v > 9.0e15) fail(file, "'" + key + "' must be an integer >= " + std::to_string(min));
+    return j.is_number_integer() ? j.get<long long>() : (long long)(v);
 }
 
 Vec3 get_vec3(const std::string& file, const json& j, const std::string& key) {
@@ -71,8 +82,8 @@ CameraDesc parse_camera(const std::string& file, const json& j) {
         if (a != "x" && a != "y") fail(file, "'camera.fov_axis' must be \"x\" or \"y\"");
         c.fov_axis = a[0];
     }
-    if (src.contains("width")) c.width = int(get_number(file, src["width"], "camera.width"));
-    if (src.contains("height")) c.height = int(get_number(file, src["height"], "camera.height"));
+    if (src.contains("width")) c.width = int(std::min(get_integer(file, src["width"], "camera.width", 1), 1LL << 20));
+    if (src.contains("height")) c.height = int(std::min(get_integer(file, src["height"], "camera.height", 1), 1LL << 20));
     return c;
 }
 
@@ -125,10 +136,45 @@ MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Overr
 
 }  // namespace
 
+namespace {
+// tinyobjloader reads a coordinate it cannot parse ("nan", "1,5", "x") as 0,
+// which would silently move a vertex; so the vertex lines are checked first.
+void check_vertex_lines(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return;  // the reader reports unreadable files
+    std::string line;
+    size_t line_no = 0;
+    while (std::getline(in, line)) {
+        ++line_no;
+        if (line.size() < 2 || line[0] != 'v' || (line[1] != ' ' && line[1] != '\t')) continue;
+        const char* c = line.data() + 1;
+        const char* end = line.data() + line.size();
+        for (int k = 0; k < 3; ++k) {
+            while (c < end && (*c == ' ' || *c == '\t')) ++c;
+            if (c == end || *c == '\r') {
+                throw InputError(path + ": line " + std::to_string(line_no) + ": a vertex needs three coordinates");
+            }
+            const char* tok = c;
+            while (c < end && *c != ' ' && *c != '\t' && *c != '\r') ++c;
+            const std::string t(tok, c);
+            float v = 0.f;
+            const char* first = t.c_str() + (t[0] == '+' ? 1 : 0);
+            const auto res = std::from_chars(first, t.c_str() + t.size(), v);
+            // Out-of-range values (1e39) parse to inf below; the loader reports those with the vertex number.
+            if (res.ec == std::errc::result_out_of_range) continue;
+            if (res.ec != std::errc() || res.ptr != t.c_str() + t.size() || !std::isfinite(v))
+                throw InputError(path + ": line " + std::to_string(line_no) + ": vertex coordinate '" + t +
+                                 "' is not a finite number");
+        }
+    }
+}
+}  // namespace
+
 void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
                    std::set<std::string>* used_overrides) {
     if (!fs::exists(path)) throw InputError(path + ": file not found");
+    check_vertex_lines(path);
     tinyobj::ObjReaderConfig cfg;
     cfg.triangulate = true;
     cfg.vertex_color = false;
@@ -313,9 +359,12 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     if (j.contains("render")) {
         const json& r = j["render"];
         check_keys(path, "render", r, {"integrator", "spp", "seed", "params"});
-        if (r.contains("integrator")) sf.defaults.integrator = r["integrator"].get<std::string>();
-        if (r.contains("spp")) sf.defaults.spp = r["spp"].get<long long>();
-        if (r.contains("seed")) sf.defaults.seed = r["seed"].get<long long>();
+        if (r.contains("integrator")) {
+            if (!r["integrator"].is_string()) fail(path, "'render.integrator' must be a string");
+            sf.defaults.integrator = r["integrator"].get<std::string>();
+        }
+        if (r.contains("spp")) sf.defaults.spp = get_integer(path, r["spp"], "render.spp", 1);
+        if (r.contains("seed")) sf.defaults.seed = get_integer(path, r["seed"], "render.seed", 0);
         if (r.contains("params") && !r["params"].is_object()) fail(path, "'render.params' must be an object");
     }
     sf.defaults.params = Params(path);

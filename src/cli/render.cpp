@@ -101,7 +101,12 @@ int render(const std::vector<std::string>& args) {
     SceneFile sf = load_scene_file(scene_path);
     const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
     const std::string name = integrator_name.empty() ? sf.defaults.integrator : integrator_name;
-    Params params = sf.defaults.params;
+    // Messages about a parameter name where it came from: the scene file, and
+    // the --set assignments when there are any (a typo may be in either).
+    std::string origin = sf.defaults.params.context();
+    for (size_t i = 0; i < sets.size(); ++i) origin += (i ? ", --set " : " with --set ") + sets[i];
+    Params params(origin);
+    for (const auto& [k, v] : sf.defaults.params.values()) params.set(k, v);
     for (const auto& s : sets) params.set_from_text(s);
     auto integrator = integrator_registry().create(name, params);
 

@@ -1,0 +1,133 @@
+// The gdr tool through gdr::cli::run: bad command lines are gdr::Errors that
+// name what is wrong (and list the alternatives), good ones write EXRs that
+// record their settings, and --resume continues a render exactly.
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "gdr/cli/commands.h"
+#include "gdr/core/error.h"
+#include "gdr/io/exr.h"
+
+using namespace gdr;
+using Catch::Matchers::Contains;
+namespace fs = std::filesystem;
+
+namespace {
+
+const std::string kScenes = GDR_SOURCE_DIR "/tests/scenes/";
+
+// A fresh directory for this process's outputs.
+const fs::path& out_dir() {
+    static const fs::path dir = [] {
+        const fs::path d = fs::temp_directory_path() / ("gdr-test-cli-" + std::to_string(getpid()));
+        fs::create_directories(d);
+        return d;
+    }();
+    return dir;
+}
+
+std::string out(const std::string& name) { return (out_dir() / name).string(); }
+
+// The message of the gdr::Error that cli::run throws for `args` ("" if none).
+std::string error_of(const std::vector<std::string>& args) {
+    try {
+        cli::run(args);
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+}  // namespace
+
+TEST_CASE("cli: an unknown integrator lists the available ones", "[cli][errors]") {
+    const std::string msg = error_of({"render", kScenes + "bad/ok.json", "--integrator", "ptt", "-o", out("x.exr")});
+    CHECK_THAT(msg, Contains("'ptt'") && Contains("available") && Contains("pt"));
+}
+
+TEST_CASE("cli: a misspelt --set parameter is named, not ignored", "[cli][errors]") {
+    const std::string msg = error_of({"render", kScenes + "bad/ok.json", "--set", "mx_depth=3", "-o", out("x.exr")});
+    CHECK_THAT(msg, Contains("'mx_depth'") && Contains("--set") && Contains("pt"));
+    // ... and so is one in the scene file's render.params, with the file.
+    const std::string msg2 = error_of({"render", kScenes + "bad/misspelt-param.json", "-o", out("x.exr")});
+    CHECK_THAT(msg2, Contains("'mx_depth'") && Contains("misspelt-param.json"));
+    // An ill-typed value names its key.
+    const std::string msg3 = error_of({"render", kScenes + "bad/ok.json", "--set", "max_depth=deep", "-o", out("x.exr")});
+    CHECK_THAT(msg3, Contains("max_depth"));
+}
+
+TEST_CASE("cli: missing and malformed scene files are errors naming the file", "[cli][errors]") {
+    CHECK_THAT(error_of({"render", kScenes + "bad/nope.json", "-o", out("x.exr")}), Contains("nope.json"));
+    CHECK_THAT(error_of({"render", kScenes + "bad/malformed.json", "-o", out("x.exr")}), Contains("malformed.json"));
+    CHECK_THAT(error_of({"render", kScenes + "bad/missing-mtl-obj.json", "-o", out("x.exr")}), Contains("no-such-file.mtl"));
+    CHECK_THAT(error_of({"render", kScenes + "bad/nan-vertex-obj.json", "-o", out("x.exr")}), Contains("nan-vertex.obj"));
+    CHECK_THAT(error_of({"render", kScenes + "bad/empty-obj.json", "-o", out("x.exr")}), Contains("empty-obj.json"));
+    CHECK_FALSE(fs::exists(out("x.exr")));
+}
+
+TEST_CASE("cli: bad command lines name the option", "[cli][errors]") {
+    const std::string ok = kScenes + "bad/ok.json";
+    CHECK_THAT(error_of({"render", ok}), Contains("-o"));
+    CHECK_THAT(error_of({"render", ok, "--spp", "0", "-o", out("x.exr")}), Contains("--spp"));
+    CHECK_THAT(error_of({"render", ok, "--spp", "ten", "-o", out("x.exr")}), Contains("--spp"));
+    CHECK_THAT(error_of({"render", ok, "--spp", "4", "--time", "1", "-o", out("x.exr")}), Contains("--time"));
+    CHECK_THAT(error_of({"render", ok, "--frobnicate", "-o", out("x.exr")}), Contains("--frobnicate"));
+    CHECK_THAT(error_of({"render", ok, "--threads", "-2", "-o", out("x.exr")}), Contains("--threads"));
+    CHECK_THAT(error_of({"render", ok, "-o"}), Contains("-o"));
+    CHECK_THAT(error_of({"frobnicate"}), Contains("'frobnicate'") && Contains("usage"));
+    CHECK_THAT(error_of({"info", out("none.exr")}), Contains("none.exr"));
+    CHECK_THAT(error_of({"render", ok, "--resume", out("none.exr"), "-o", out("x.exr")}), Contains("none.exr"));
+}
+
+TEST_CASE("cli: zero-area triangles do not stop a render", "[cli]") {
+    REQUIRE(cli::run({"render", kScenes + "bad/degenerate-obj.json", "--spp", "2", "-o", out("degenerate.exr")}) == 0);
+    CHECK(read_exr(out("degenerate.exr")).has("color"));
+}
+
+TEST_CASE("cli: render writes every layer and the settings it was made with", "[cli]") {
+    REQUIRE(cli::run({"render", kScenes + "emitter-wall/scene.json", "--spp", "3", "--seed", "5", "--set", "max_depth=4",
+                      "--threads", "2", "-o", out("wall.exr")}) == 0);
+    const FrameBuffer fb = read_exr(out("wall.exr"));
+    for (const char* layer : {"color", "albedo", "normal", "depth", "variance", "spp"}) CHECK(fb.has(layer));
+    CHECK(fb.get("color").rgb(3, 3).r == Approx(3.f));
+    const auto& m = fb.metadata();
+    CHECK(m.at("integrator") == "pt");
+    CHECK(m.at("spp") == "3");
+    CHECK(m.at("seed") == "5");
+    CHECK_THAT(m.at("integrator_params"), Contains("max_depth=4"));
+    CHECK_THAT(m.at("scene"), Contains("emitter-wall"));
+    CHECK(fs::exists(out("wall.png")));
+    CHECK(cli::run({"info", out("wall.exr")}) == 0);
+    CHECK(cli::run({"list"}) == 0);
+}
+
+TEST_CASE("cli: --resume continues the sample sequence: 8 + 8 spp equals 16 spp", "[cli]") {
+    const std::string scene = kScenes + "cornell-small.json";
+    REQUIRE(cli::run({"render", scene, "--spp", "8", "--seed", "9", "-o", out("first.exr")}) == 0);
+    REQUIRE(cli::run({"render", scene, "--spp", "8", "--resume", out("first.exr"), "-o", out("resumed.exr")}) == 0);
+    REQUIRE(cli::run({"render", scene, "--spp", "16", "--seed", "9", "-o", out("full.exr")}) == 0);
+    const FrameBuffer a = read_exr(out("resumed.exr")), b = read_exr(out("full.exr"));
+    CHECK(a.metadata().at("spp") == "16");
+    const Image &ca = a.get("color"), &cb = b.get("color");
+    const Image &va = a.get("variance"), &vb = b.get("variance");
+    REQUIRE(ca.same_shape(cb));
+    double worst = 0, worst_var = 0;
+    for (size_t i = 0; i < ca.values().size(); ++i) {
+        worst = std::max(worst, std::abs(double(ca.values()[i]) - cb.values()[i]) / (std::abs(double(cb.values()[i])) + 1e-6));
+        worst_var = std::max(worst_var, std::abs(double(va.values()[i]) - vb.values()[i]) / (std::abs(double(vb.values()[i])) + 1e-6));
+    }
+    CHECK(worst < 1e-5);
+    CHECK(worst_var < 1e-4);
+    CHECK(a.get("spp").at(0, 0) == 16.f);
+    // Resuming with another seed or integrator parameters would mix two estimates: refused.
+    CHECK_THAT(error_of({"render", scene, "--spp", "8", "--seed", "3", "--resume", out("first.exr"), "-o", out("bad.exr")}),
+               Contains("seed"));
+    CHECK_THAT(error_of({"render", scene, "--spp", "8", "--set", "max_depth=3", "--resume", out("first.exr"), "-o",
+                         out("bad.exr")}),
+               Contains("parameters"));
+}

@@ -1,0 +1,362 @@
+// The path tracer against known answers: emitters seen directly, the white
+// furnace, a floor lit by a parallel square light (form factor), NEE+MIS vs
+// BSDF sampling on the Cornell box; and the render loop's guarantees:
+// bit-identical images for any thread count, exact resume, NaN accounting.
+//
+// Statistical checks are z-tests with the per-pixel sample variance the
+// renderer reports; thresholds are Bonferroni-corrected for the number of
+// tests in a case so a correct renderer fails with probability < 1e-3, and
+// each case shows the test has power (a wrong answer is rejected).
+#include <catch2/catch.hpp>
+
+#include <atomic>
+#include <cmath>
+#include <mutex>
+#include <cstring>
+#include <functional>
+#include <string>
+
+#include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/integrators/path_dims.h"
+#include "gdr/integrators/pt.h"
+#include "gdr/integrators/tiled.h"
+#include "gdr/io/scene_file.h"
+
+using namespace gdr;
+
+namespace {
+
+const std::string kScenes = GDR_SOURCE_DIR "/tests/scenes/";
+
+FrameBuffer render(const Scene& scene, long long spp, uint64_t seed, const std::string& params = "", int threads = 0,
+                   long long first_sample = 0, RenderStats* stats = nullptr) {
+    Params p("test");
+    if (!params.empty()) {
+        size_t a = 0;
+        while (a < params.size()) {
+            const size_t b = params.find(',', a);
+            p.set_from_text(params.substr(a, b == std::string::npos ? std::string::npos : b - a));
+            a = b == std::string::npos ? params.size() : b + 1;
+        }
+    }
+    auto pt = integrator_registry().create("pt", p);
+    RenderSettings st;
+    st.spp = spp;
+    st.seed = seed;
+    st.threads = threads;
+    st.first_sample = first_sample;
+    FrameBuffer fb;
+    const RenderStats rs = pt->render(scene, st, fb, {});
+    if (stats) *stats = rs;
+    return fb;
+}
+
+// Mean of one channel over a pixel rectangle and the variance of that mean,
+// from the per-pixel means and per-sample variances of a render.
+struct Estimate {
+    double mean = 0, var = 0;
+};
+Estimate region(const FrameBuffer& fb, int ch, int x0, int y0, int x1, int y1) {
+    const Image &c = fb.get("color"), &v = fb.get("variance");
+    const double spp = fb.get("spp").at(0, 0);
+    Estimate e;
+    const double n = double(x1 - x0) * (y1 - y0);
+    for (int y = y0; y < y1; ++y)
+        for (int x = x0; x < x1; ++x) e.mean += c.at(x, y, ch) / n, e.var += v.at(x, y, ch) / spp / (n * n);
+    return e;
+}
+
+// z of a render's region against a known value (an exactly known value has
+// zero variance; a floor on the standard error keeps z finite).
+double z_known(const Estimate& e, double expected) {
+    return (e.mean - expected) / std::sqrt(std::max(e.var, 1e-14 * (1.0 + expected * expected)));
+}
+double z_two(const Estimate& a, const Estimate& b) {
+    return (a.mean - b.mean) / std::sqrt(std::max(a.var + b.var, 1e-14));
+}
+
+// Largest |z| over every pixel and channel of a render against expected(x, y, ch).
+double max_pixel_z(const FrameBuffer& fb, const std::function<double(int, int, int)>& expected) {
+    double worst = 0;
+    for (int y = 0; y < fb.height(); ++y)
+        for (int x = 0; x < fb.width(); ++x)
+            for (int ch = 0; ch < 3; ++ch) worst = std::max(worst, std::abs(z_known(region(fb, ch, x, y, x + 1, y + 1), expected(x, y, ch))));
+    return worst;
+}
+
+// Threshold |z| for `tests` two-sided tests at family-wise level 1e-3 (Bonferroni),
+// from the normal tail bound; 4.0 at one test, ~5.3 at 1000.
+double z_threshold(int tests) {
+    const double alpha = 1e-3 / tests;
+    double z = 3.0;
+    while (std::erfc(z / std::sqrt(2.0)) > alpha) z += 0.01;
+    return z;
+}
+
+// Radiance leaving a Lambertian floor point under a parallel rectangle:
+// albedo * Le * F, with F the differential-area-to-rectangle form factor.
+// The corner formula (the rectangle [0,a]x[0,b] at height h over the point)
+// is odd in a and in b, so any rectangle follows by inclusion-exclusion.
+double form_factor_corner(double a, double b, double h) {
+    const double A = a / h, B = b / h, sa = std::sqrt(1 + A * A), sb = std::sqrt(1 + B * B);
+    return (A / sa * std::atan(B / sa) + B / sb * std::atan(A / sb)) / (2 * M_PI);
+}
+double form_factor(double px, double pz, double x0, double x1, double z0, double z1, double h) {
+    return form_factor_corner(x1 - px, z1 - pz, h) - form_factor_corner(x0 - px, z1 - pz, h) -
+           form_factor_corner(x1 - px, z0 - pz, h) + form_factor_corner(x0 - px, z0 - pz, h);
+}
+
+}  // namespace
+
+TEST_CASE("pt: an emitter seen directly gives exactly its radiance, from the front only", "[pt][analytic]") {
+    const SceneFile front = load_scene_file(kScenes + "emitter-wall/scene.json");
+    const SceneFile back = load_scene_file(kScenes + "emitter-wall/back.json");
+    for (const char* params : {"", "nee=false"}) {
+        const FrameBuffer f = render(*front.scene, 8, 1, params), b = render(*back.scene, 8, 1, params);
+        for (int y = 0; y < f.height(); ++y)
+            for (int x = 0; x < f.width(); ++x) {
+                INFO(params << " pixel " << x << ", " << y);
+                REQUIRE(f.get("color").rgb(x, y) == Color(3.f, 2.f, 0.5f));
+                REQUIRE(f.get("variance").rgb(x, y) == Color(0.f));
+                REQUIRE(b.get("color").rgb(x, y) == Color(0.f));
+            }
+        CHECK(f.get("depth").at(5, 4) == Approx(2.f).epsilon(0.01));
+        CHECK(f.get("normal").rgb(5, 4).z == Approx(1.f));
+    }
+}
+
+TEST_CASE("pt: white furnace, L = Le / (1 - albedo), and Le (1 - a^k) / (1 - a) at max_depth k", "[pt][analytic][statistical]") {
+    // A closed Lambertian cube emitting Le = 1 from every inward face.
+    const SceneFile grey = load_scene_file(kScenes + "furnace/scene.json");
+    const SceneFile rgb = load_scene_file(kScenes + "furnace/coloured.json");
+    struct Case {
+        const Scene* scene;
+        Color albedo;
+        int max_depth;
+        const char* params;
+    };
+    const Color a_grey(0.5f), a_rgb(0.2f, 0.5f, 0.8f);
+    const std::vector<Case> cases = {
+        {grey.scene.get(), a_grey, -1, ""},          {grey.scene.get(), a_grey, -1, "nee=false"},
+        {rgb.scene.get(), a_rgb, -1, ""},            {rgb.scene.get(), a_rgb, -1, "nee=false"},
+        {grey.scene.get(), a_grey, 1, "max_depth=1"}, {grey.scene.get(), a_grey, 2, "max_depth=2"},
+        {rgb.scene.get(), a_rgb, 3, "max_depth=3"},  {rgb.scene.get(), a_rgb, 3, "max_depth=3,nee=false"},
+        {rgb.scene.get(), a_rgb, 6, "max_depth=6,rr_depth=2"}};
+    // Per case and channel: the whole image, and its four quadrants (a bias at
+    // the cube's edges or corners would show there). Single pixels are not
+    // tested: Russian roulette makes a pixel's 128 samples so skewed (a few
+    // survivors carry the tail) that its variance estimate is unreliable.
+    const double zt = z_threshold(int(cases.size()) * 3 * 5);
+    for (const Case& c : cases) {
+        const FrameBuffer fb = render(*c.scene, 128, 17, c.params);
+        INFO("albedo " << c.albedo.r << "," << c.albedo.g << "," << c.albedo.b << " " << c.params);
+        const int w = fb.width(), h = fb.height();
+        for (int ch = 0; ch < 3; ++ch) {
+            const double a = c.albedo[ch];
+            const double expected = c.max_depth < 0 ? 1.0 / (1.0 - a) : (1.0 - std::pow(a, c.max_depth)) / (1.0 - a);
+            const Estimate e = region(fb, ch, 0, 0, w, h);
+            INFO("channel " << ch << ": " << e.mean << " +- " << std::sqrt(e.var) << " vs " << expected);
+            CHECK(std::abs(z_known(e, expected)) < zt);
+            // Power: an answer 5% off is rejected.
+            CHECK(std::abs(z_known(e, 1.05 * expected)) > zt);
+            for (int q = 0; q < 4; ++q) {
+                const int x0 = (q % 2) * w / 2, y0 = (q / 2) * h / 2;
+                CHECK(std::abs(z_known(region(fb, ch, x0, y0, x0 + w / 2, y0 + h / 2), expected)) < zt);
+            }
+        }
+    }
+}
+
+TEST_CASE("pt: a floor under a parallel square light matches the form factor", "[pt][analytic][statistical]") {
+    // Floor y = 0 (albedo 0.6), emitter [-0.25, 0.25]^2 at height 1 (Le 10) facing down.
+    const double rho = 0.6, le = 10.0, h = 1.0, s = 0.25;
+    // The closed form against brute-force quadrature of cos cos / (pi r^2) at one point.
+    {
+        const double px = 0.3, pz = -0.1;
+        double f = 0;
+        const int n = 400;
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                const double x = -s + (i + 0.5) * 2 * s / n - px, z = -s + (j + 0.5) * 2 * s / n - pz;
+                const double r2 = x * x + z * z + h * h;
+                f += h * h / (M_PI * r2 * r2) * (2 * s / n) * (2 * s / n);
+            }
+        CHECK(form_factor(px, pz, -s, s, -s, s, h) == Approx(f).epsilon(1e-5));
+    }
+    const SceneFile sf = load_scene_file(kScenes + "parallel-light/scene.json");
+    const Camera& cam = sf.scene->camera();
+    // Expected pixel value: the pixel-footprint average of rho Le F (64 film points per pixel).
+    std::vector<double> expected(size_t(cam.width()) * cam.height(), 0.0);
+    for (int y = 0; y < cam.height(); ++y)
+        for (int x = 0; x < cam.width(); ++x) {
+            double sum = 0;
+            for (int i = 0; i < 8; ++i)
+                for (int j = 0; j < 8; ++j) {
+                    const Ray r = cam.generate_ray(Vec2(x + (i + 0.5f) / 8, y + (j + 0.5f) / 8));
+                    REQUIRE(r.d.y < 0.f);
+                    const double t = -double(r.o.y) / r.d.y;
+                    sum += rho * le * form_factor(r.o.x + t * r.d.x, r.o.z + t * r.d.z, -s, s, -s, s, h) / 64;
+                }
+            expected[size_t(y) * cam.width() + x] = sum;
+        }
+    auto exp_at = [&](int x, int y, int) { return expected[size_t(y) * cam.width() + x]; };
+    const int pixels = cam.width() * cam.height();
+    for (const auto& [params, spp] : {std::pair<const char*, int>{"", 64}, {"nee=false", 2048}}) {
+        const FrameBuffer fb = render(*sf.scene, spp, 23, params);
+        INFO(params);
+        double mean_expected = 0;
+        for (double v : expected) mean_expected += v / pixels;
+        const Estimate e = region(fb, 1, 0, 0, cam.width(), cam.height());
+        INFO("image mean " << e.mean << " +- " << std::sqrt(e.var) << " vs " << mean_expected);
+        CHECK(std::abs(z_known(e, mean_expected)) < z_threshold(4));
+        CHECK(std::abs(z_known(e, 1.05 * mean_expected)) > z_threshold(4));  // power: 5% off is rejected
+        CHECK(max_pixel_z(fb, exp_at) < z_threshold(2 * pixels * 3));
+    }
+}
+
+TEST_CASE("pt: NEE + MIS and BSDF sampling agree on the Cornell box", "[pt][statistical]") {
+    // 24 x 24 pixels in 6 x 6 blocks: 16 blocks x 3 channels per comparison.
+    // BSDF sampling finds the small light rarely; with too few samples its
+    // block means are skewed low and their variance estimates too small, so
+    // it gets 16x the samples (checked: worst |z| 1.8-3.4 over 12 seed pairs).
+    const SceneFile sf = load_scene_file(kScenes + "cornell-small.json");
+    const int res = 24, block = 6, n_blocks = (res / block) * (res / block);
+    const double zt = z_threshold(2 * n_blocks * 3);
+    auto max_block_z = [&](const FrameBuffer& a, const FrameBuffer& b) {
+        double worst = 0;
+        for (int by = 0; by < res; by += block)
+            for (int bx = 0; bx < res; bx += block)
+                for (int ch = 0; ch < 3; ++ch)
+                    worst = std::max(worst, std::abs(z_two(region(a, ch, bx, by, bx + block, by + block),
+                                                           region(b, ch, bx, by, bx + block, by + block))));
+        return worst;
+    };
+    const FrameBuffer nee = render(*sf.scene, 64, 1), bsdf = render(*sf.scene, 1024, 2, "nee=false");
+    CHECK(max_block_z(nee, bsdf) < zt);
+    // Path-length limits must cut both estimators at the same place.
+    const FrameBuffer nee3 = render(*sf.scene, 64, 3, "max_depth=3"), bsdf3 = render(*sf.scene, 1024, 4, "max_depth=3,nee=false");
+    CHECK(max_block_z(nee3, bsdf3) < zt);
+    // Power: dropping the indirect light (max_depth 2) is detected.
+    CHECK(max_block_z(nee3, render(*sf.scene, 64, 5, "max_depth=2")) > zt);
+}
+
+TEST_CASE("pt: images are bit-identical for 1, 2 and all threads", "[pt][determinism]") {
+    const SceneFile sf = load_scene_file(kScenes + "cornell-small.json");
+    const FrameBuffer a = render(*sf.scene, 8, 7, "", 1), b = render(*sf.scene, 8, 7, "", 2), c = render(*sf.scene, 8, 7, "", 0);
+    REQUIRE(a.names() == b.names());
+    for (const auto& name : a.names()) {
+        INFO(name);
+        const auto &va = a.get(name).values(), &vb = b.get(name).values(), &vc = c.get(name).values();
+        REQUIRE(va.size() == vb.size());
+        CHECK(std::memcmp(va.data(), vb.data(), va.size() * sizeof(float)) == 0);
+        CHECK(std::memcmp(va.data(), vc.data(), va.size() * sizeof(float)) == 0);
+    }
+    // A different seed gives a different image.
+    const FrameBuffer d = render(*sf.scene, 8, 8, "", 2);
+    CHECK(std::memcmp(a.get("color").data(), d.get("color").data(), a.get("color").values().size() * sizeof(float)) != 0);
+}
+
+TEST_CASE("pt: 8 spp resumed by 8 more equals one 16 spp render", "[pt][determinism]") {
+    const SceneFile sf = load_scene_file(kScenes + "cornell-small.json");
+    FrameBuffer first = render(*sf.scene, 8, 9);
+    const FrameBuffer second = render(*sf.scene, 8, 9, "", 0, 8), full = render(*sf.scene, 16, 9);
+    CHECK(second.metadata().at("first_sample") == "8");
+    merge_renders(first, second);
+    CHECK(first.metadata().at("spp") == "16");
+    for (const auto& name : full.names()) {
+        INFO(name);
+        const auto &m = first.get(name).values(), &f = full.get(name).values();
+        const double tol = name == "variance" ? 1e-4 : 1e-5;
+        double worst = 0;
+        for (size_t i = 0; i < f.size(); ++i) worst = std::max(worst, std::abs(double(m[i]) - f[i]) / (std::abs(double(f[i])) + 1e-6));
+        CHECK(worst < tol);
+    }
+    // Starting again at sample 0 instead would repeat the first 8 samples: detected.
+    FrameBuffer again = render(*sf.scene, 8, 9);
+    merge_renders(again, render(*sf.scene, 8, 9));
+    double diff = 0;
+    for (size_t i = 0; i < full.get("color").values().size(); ++i)
+        diff = std::max(diff, double(std::abs(again.get("color").values()[i] - full.get("color").values()[i])));
+    CHECK(diff > 1e-3);
+}
+
+namespace {
+// Writes NaN at pixel (1, 2), the pixel's x elsewhere: the render loop must
+// drop and report the NaNs and keep the rest.
+class NanAt12 final : public TiledIntegrator {
+public:
+    std::string describe() const override { return ""; }
+
+protected:
+    std::vector<SlotSpec> slots() const override { return {{"value", 1, true}}; }
+    void sample(const Scene&, int x, int y, Sampler&, float* out, uint64_t& rays) const override {
+        out[0] = (x == 1 && y == 2) ? std::nanf("") : float(x);
+        ++rays;
+    }
+};
+}  // namespace
+
+TEST_CASE("tiled integrators: NaN samples are dropped, counted and located", "[pt][tiled]") {
+    const SceneFile sf = load_scene_file(kScenes + "emitter-wall/scene.json");
+    NanAt12 integ;
+    RenderSettings st;
+    st.spp = 5;
+    FrameBuffer fb;
+    std::mutex m;
+    uint64_t last_samples = 0;
+    const RenderStats rs = integ.render(*sf.scene, st, fb, [&](const Progress& p) {
+        std::lock_guard<std::mutex> lock(m);
+        last_samples = std::max(last_samples, p.samples);
+    });
+    CHECK(rs.nonfinite == 5);
+    REQUIRE(!rs.nonfinite_pixels.empty());
+    CHECK(rs.nonfinite_pixels[0] == std::pair<int, int>(1, 2));
+    CHECK(fb.get("value").at(1, 2) == 0.f);
+    CHECK(fb.get("value").at(3, 2) == 3.f);
+    CHECK(fb.get("value_variance").at(3, 2) == 0.f);
+    CHECK(rs.samples == uint64_t(5 * 10 * 8));
+    CHECK(rs.rays == rs.samples);
+    CHECK(last_samples == rs.samples);
+    CHECK(fb.metadata().at("spp") == "5");
+}
+
+TEST_CASE("tiled integrators: time budgets and cancellation end on whole passes", "[pt][tiled]") {
+    const SceneFile sf = load_scene_file(kScenes + "emitter-wall/scene.json");
+    auto pt = integrator_registry().create("pt", Params());
+    FrameBuffer fb;
+    RenderSettings st;
+    st.time_budget = 0.05;
+    const RenderStats timed = pt->render(*sf.scene, st, fb, {});
+    CHECK(timed.spp >= 1);
+    CHECK(fb.metadata().at("spp") == std::to_string(timed.spp));
+    CHECK(timed.samples == uint64_t(timed.spp) * 80);
+    std::atomic<bool> cancel{true};
+    RenderSettings sc;
+    sc.spp = 100;
+    sc.cancel = &cancel;
+    const RenderStats cancelled = pt->render(*sf.scene, sc, fb, {});
+    CHECK(cancelled.spp == 16);  // the first pass always completes
+    CHECK(fb.get("color").rgb(0, 0) == Color(3.f, 2.f, 0.5f));
+    RenderSettings bad;
+    bad.spp = 0;
+    CHECK_THROWS_AS(pt->render(*sf.scene, bad, fb, {}), ParameterError);
+}
+
+TEST_CASE("pt: parameters are validated", "[pt][errors]") {
+    CHECK_THROWS_AS(integrator_registry().create("pt", [] { Params p; p.set("max_depth", 0LL); return p; }()), ParameterError);
+    CHECK_THROWS_AS(integrator_registry().create("pt", [] { Params p; p.set("rr_depth", 0LL); return p; }()), ParameterError);
+    CHECK_THROWS_WITH(integrator_registry().create("pt", [] { Params p; p.set("mx_depth", 3LL); return p; }()),
+                      Catch::Contains("'mx_depth'"));
+}
+
+TEST_CASE("trace_path: a camera ray into an emitter returns its radiance and first-hit data", "[pt]") {
+    const SceneFile sf = load_scene_file(kScenes + "emitter-wall/scene.json");
+    Sampler s(SampleKey{1, 0, 0, 0});
+    const PathResult r = trace_path(*sf.scene, Ray{Vec3(0.f), Vec3(0, 0, -1)}, s, PathOptions{});
+    CHECK(r.radiance == Color(3.f, 2.f, 0.5f));
+    CHECK(r.depth == Approx(2.f));
+    CHECK(r.normal.z == Approx(1.f));
+    CHECK(r.albedo == Color(0.f));
+    CHECK(r.rays == 1);  // a black BSDF ends the path; a light sample in the emitter's own plane casts no shadow ray
+}

@@ -1,0 +1,182 @@
+// Scene loading and the Embree scene: every kind of bad input is a gdr::Error
+// naming the file (and key), never a crash or a silent default; good input
+// gives hits with the documented conventions (winding, one-sided emitters).
+#include <catch2/catch.hpp>
+
+#include <limits>
+#include <string>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/scene_file.h"
+#include "gdr/scene/scene.h"
+
+using namespace gdr;
+using Catch::Matchers::Contains;
+
+namespace {
+
+const std::string kBad = GDR_SOURCE_DIR "/tests/scenes/bad/";
+
+// The message of the gdr::Error that `f` throws ("" if it throws none).
+template <class F>
+std::string error_of(F&& f) {
+    try {
+        f();
+    } catch (const Error& e) {
+        return e.what();
+    }
+    return "";
+}
+
+// A triangle soup from corner triples, all with material 0.
+TriangleMesh soup(const std::vector<Vec3>& corners) {
+    TriangleMesh m;
+    m.positions = corners;
+    m.material_ids.assign(corners.size() / 3, 0u);
+    return m;
+}
+
+std::vector<Material> one_material(Color emission = Color(0.f)) {
+    return {Material{"m", make_lambertian(make_constant_texture(Color(0.5f))), emission}};
+}
+
+}  // namespace
+
+TEST_CASE("scene file: a missing file names the path", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "does-not-exist.json"); });
+    CHECK_THAT(msg, Contains("does-not-exist.json") && Contains("not found"));
+    CHECK_THROWS_AS(load_scene_file(kBad + "does-not-exist.json"), InputError);
+}
+
+TEST_CASE("scene file: malformed JSON names the file and the position", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "malformed.json"); });
+    CHECK_THAT(msg, Contains("malformed.json") && Contains("malformed JSON") && Contains("line"));
+}
+
+TEST_CASE("scene file: an unknown key is an error naming it and listing the valid ones", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "unknown-key.json"); });
+    CHECK_THAT(msg, Contains("unknown-key.json") && Contains("'colour'") && Contains("camera"));
+}
+
+TEST_CASE("scene file: an ill-typed value names the key", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "bad-type.json"); });
+    CHECK_THAT(msg, Contains("bad-type.json") && Contains("render.spp"));
+}
+
+TEST_CASE("scene file: a missing mesh names the OBJ path", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "missing-mesh.json"); });
+    CHECK_THAT(msg, Contains("no-such-mesh.obj") && Contains("not found"));
+}
+
+TEST_CASE("OBJ: a malformed face line is an error naming the file", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "malformed-obj.json"); });
+    CHECK_THAT(msg, Contains("malformed.obj") && Contains("cannot parse OBJ"));
+}
+
+TEST_CASE("OBJ: a missing MTL library is an error, not grey surfaces", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "missing-mtl-obj.json"); });
+    CHECK_THAT(msg, Contains("missing-mtl.obj") && Contains("no-such-file.mtl"));
+}
+
+TEST_CASE("OBJ: a NaN vertex is an error naming file and line, not a vertex at 0", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "nan-vertex-obj.json"); });
+    CHECK_THAT(msg, Contains("nan-vertex.obj") && Contains("line 2") && Contains("'nan'"));
+    // load_obj directly too.
+    TriangleMesh mesh;
+    std::vector<Material> mats;
+    CHECK_THROWS_AS(load_obj(kBad + "nan-vertex.obj", Mat4(1.f), mesh, mats), InputError);
+}
+
+TEST_CASE("scene: an OBJ without faces is an 'empty scene' error naming the scene file", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "empty-obj.json"); });
+    CHECK_THAT(msg, Contains("empty-obj.json") && Contains("no (non-degenerate) triangles"));
+}
+
+TEST_CASE("scene: zero-area triangles are skipped and counted, and the scene renders", "[scene][errors]") {
+    const SceneFile sf = load_scene_file(kBad + "degenerate-obj.json");
+    CHECK(sf.scene->stats().triangles == 1);
+    CHECK(sf.scene->stats().degenerate_skipped == 2);
+    auto pt = integrator_registry().create("pt", Params());
+    RenderSettings st;
+    st.spp = 2;
+    FrameBuffer fb;
+    const RenderStats rs = pt->render(*sf.scene, st, fb, {});
+    CHECK(rs.nonfinite == 0);
+    CHECK(fb.get("color").width() == 4);
+    // The remaining triangle is hit (it covers the image centre) with its material.
+    CHECK(fb.get("albedo").rgb(2, 2).g == Approx(0.5f));
+}
+
+TEST_CASE("scene: non-finite vertices and dangling material ids are errors naming the origin", "[scene][errors]") {
+    const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    CHECK_THAT(error_of([&] { Scene(soup({a, b, Vec3(0, nan, 0)}), one_material(), Camera(), "mem"); }),
+               Contains("mem") && Contains("non-finite"));
+    CHECK_THAT(error_of([&] { Scene(soup({a, b, Vec3(kInf, 0, 0)}), one_material(), Camera(), "mem"); }),
+               Contains("non-finite"));
+    TriangleMesh m = soup({a, b, c});
+    m.material_ids[0] = 7;
+    CHECK_THAT(error_of([&] { Scene(m, one_material(), Camera(), "mem"); }), Contains("mem") && Contains("material"));
+    CHECK_THAT(error_of([&] { Scene(TriangleMesh{}, one_material(), Camera(), "mem"); }), Contains("no (non-degenerate)"));
+    CHECK_THAT(error_of([&] { Scene(soup({a, b, b}), one_material(), Camera(), "mem"); }), Contains("no (non-degenerate)"));
+}
+
+TEST_CASE("scene: hits report position, winding normal, material and one-sided emission", "[scene]") {
+    // One emitting triangle in the plane z = -2, counter-clockwise seen from +z.
+    const Scene scene(soup({Vec3(-1, -1, -2), Vec3(1, -1, -2), Vec3(0, 1, -2)}), one_material(Color(4.f)), Camera(), "mem");
+    SurfaceInteraction si;
+    REQUIRE(scene.intersect(Ray{Vec3(0.1f, 0.f, 0.f), Vec3(0, 0, -1)}, si));
+    CHECK(si.t == Approx(2.f));
+    CHECK(si.p.x == Approx(0.1f));
+    CHECK(si.p.z == Approx(-2.f));
+    CHECK(si.ng.z == Approx(1.f));
+    CHECK(si.frame.n.z == Approx(1.f));
+    CHECK(si.material == &scene.materials()[0]);
+    CHECK(si.is_emitter());
+    CHECK(si.emitted(Vec3(0, 0, 1)).r == 4.f);   // towards the front
+    CHECK(si.emitted(Vec3(0, 0, -1)).r == 0.f);  // towards the back
+    // Misses, tmax and occlusion.
+    CHECK_FALSE(scene.intersect(Ray{Vec3(5.f, 0.f, 0.f), Vec3(0, 0, -1)}, si));
+    CHECK_FALSE(scene.intersect(Ray{Vec3(0.f, 0.f, 0.f), Vec3(0, 0, -1), 0.f, 1.9f}, si));
+    CHECK(scene.occluded(Ray{Vec3(0.f, 0.f, 0.f), Vec3(0, 0, -1)}));
+    CHECK_FALSE(scene.occluded(Ray{Vec3(0.f, 0.f, 0.f), Vec3(0, 0, 1)}));
+    CHECK_FALSE(scene.visible(Vec3(0, 0, 0), Vec3(0, 0, -1), Vec3(0, 0, -4), Vec3(0, 0, 1)));
+    CHECK(scene.visible(Vec3(0, 0, 0), Vec3(0, 0, -1), Vec3(0, 0, -1), Vec3(0, 0, 1)));
+    CHECK(scene.stats().emitters == 1);
+    CHECK(scene.bounding_radius() > 1.f);
+}
+
+TEST_CASE("scene: a mirroring transform keeps emitters facing the same way", "[scene]") {
+    // Scaling x by -1 reverses the winding; the loader must swap corners so the
+    // emitting side (the +z side of the wall) stays the emitting side.
+    TriangleMesh mesh;
+    std::vector<Material> mats;
+    load_obj(GDR_SOURCE_DIR "/tests/scenes/emitter-wall/wall.obj", glm::scale(Mat4(1.f), Vec3(-1, 1, 1)), mesh, mats);
+    const Scene scene(std::move(mesh), std::move(mats), Camera(), "mirrored");
+    SurfaceInteraction si;
+    REQUIRE(scene.intersect(Ray{Vec3(0.f), Vec3(0, 0, -1)}, si));
+    CHECK(si.ng.z == Approx(1.f));
+    CHECK(si.emitted(Vec3(0, 0, 1)).r == 3.f);
+}
+
+TEST_CASE("scene file: the Cornell box loads with its light and camera", "[scene]") {
+    const SceneFile sf = load_scene_file(GDR_SOURCE_DIR "/scenes/cornell-box/scene.json");
+    CHECK(sf.scene->stats().triangles == 36);
+    CHECK(sf.scene->stats().emitters == 2);
+    CHECK(sf.scene->camera().width() == 512);
+    CHECK(sf.defaults.integrator == "pt");
+    CHECK(sf.defaults.spp == 64);
+    // The camera looks into the box [-1, 1] x [0, 2] x [-1, 1]: central rays hit inside it.
+    for (float x : {100.f, 256.f, 412.f})
+        for (float y : {100.f, 256.f, 412.f}) {
+            SurfaceInteraction si;
+            REQUIRE(sf.scene->intersect(sf.scene->camera().generate_ray(Vec2(x, y)), si));
+            CHECK(std::abs(si.p.x) < 1.1f);
+            CHECK(si.p.y > -0.1f);
+            CHECK(si.p.y < 2.1f);
+            CHECK(si.p.z > -1.1f);
+        }
+}
