@@ -1,0 +1,431 @@
+// Equal-time comparison of PT, G-PT + L1 and G-PT + L2 on real scenes.
+//
+// For each scene: a cached high-spp PT reference, then for every time budget
+// of a geometric series one PT render and one G-PT render (interleaved, so
+// load changes on a shared machine hit both alike). G-PT's time is render +
+// reconstruction wall time: its render budget is shortened by the L1 solve
+// time measured once beforehand, and each method is placed at its measured
+// total time. Error: relMSE with the thesis convention (per channel,
+// eps = 0.01). Writes results.csv, summary.md, a log-log convergence plot
+// and a crops image per scene, and prints the time each G-PT variant needs
+// to reach PT's relMSE at the largest budget.
+//
+// Usage: bench_equal_time [--quick] [--references-only] [--refresh-references]
+//          [--scenes a,b] [--width W] [--budgets s1,s2,..] [--ref-spp N]
+//          [--out DIR] [--cache DIR] [--docs DIR] [--threads N]
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "gdr/eval/equal_time.h"
+#include "gdr/eval/plot.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/exr.h"
+#include "gdr/metrics.h"
+#include "gdr/reconstruct/reconstructor.h"
+
+using namespace gdr;
+using namespace gdr::eval;
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+struct SceneSpec {
+    std::string name, path;
+    long long ref_spp;  // full-mode reference samples per pixel: fewer where PT is slow (see README note)
+};
+
+const std::vector<SceneSpec> kAllScenes = {
+    {"cbox-original", GDR_SOURCE_DIR "/scenes/cornell-box/scene.json", 2048},
+    {"cbox-glossy", GDR_SOURCE_DIR "/scenes/cornell-box/glossy.json", 2048},
+    {"cbox-sphere", GDR_SOURCE_DIR "/scenes/cornell-box/sphere.json", 2048},
+    {"veach-mis", GDR_SOURCE_DIR "/scenes/veach-mis/scene.json", 2048},
+    {"veach-bidir", GDR_SOURCE_DIR "/scenes/veach-bidir/scene.json", 1024},
+    {"bathroom", GDR_SOURCE_DIR "/scenes/bathroom/scene.json", 512},
+};
+
+struct Options {
+    bool quick = false, references_only = false, refresh = false;
+    std::vector<std::string> scenes;
+    // 192 px and 8 s keep the full run, references included, near 20 minutes on 2 cores.
+    int width = 192;
+    std::vector<double> budgets{0.25, 0.5, 1, 2, 4, 8};
+    long long ref_spp = 0;  // 0: each scene's own default
+    std::string out = "equal-time", cache = default_reference_cache(), docs;
+    int threads = 0;
+};
+
+std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> v;
+    std::stringstream ss(s);
+    for (std::string t; std::getline(ss, t, ',');)
+        if (!t.empty()) v.push_back(t);
+    return v;
+}
+
+Options parse(int argc, char** argv) {
+    Options o;
+    bool width_set = false, budgets_set = false, spp_set = false;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        auto next = [&]() -> std::string {
+            if (i + 1 >= argc) throw ParameterError(a + " needs a value");
+            return argv[++i];
+        };
+        if (a == "--quick") o.quick = true;
+        else if (a == "--references-only") o.references_only = true;
+        else if (a == "--refresh-references") o.refresh = true;
+        else if (a == "--scenes") o.scenes = split(next());
+        else if (a == "--width") o.width = std::stoi(next()), width_set = true;
+        else if (a == "--budgets") {
+            o.budgets.clear();
+            for (const std::string& b : split(next())) o.budgets.push_back(std::stod(b));
+            budgets_set = true;
+        } else if (a == "--ref-spp") o.ref_spp = std::stoll(next()), spp_set = true;
+        else if (a == "--out") o.out = next();
+        else if (a == "--cache") o.cache = next();
+        else if (a == "--docs") o.docs = next();
+        else if (a == "--threads") o.threads = std::stoi(next());
+        else if (a == "-h" || a == "--help") {
+            std::printf("usage: bench_equal_time [--quick] [--references-only] [--refresh-references] [--scenes a,b]\n"
+                        "         [--width W] [--budgets s1,s2,..] [--ref-spp N] [--out DIR] [--cache DIR] [--docs DIR]\n"
+                        "         [--threads N]\nscenes:");
+            for (const SceneSpec& s : kAllScenes) std::printf(" %s", s.name.c_str());
+            std::printf("\n");
+            std::exit(0);
+        } else
+            throw ParameterError("unknown argument " + a);
+    }
+    // Quick mode (CI): tiny images, three short budgets, two scenes, cheap references.
+    if (o.quick) {
+        if (!width_set) o.width = 96;
+        if (!budgets_set) o.budgets = {0.25, 0.5, 1};
+        if (!spp_set) o.ref_spp = 1024;
+        if (o.scenes.empty()) o.scenes = {"cbox-original", "cbox-glossy"};
+    }
+    if (o.scenes.empty())
+        for (const SceneSpec& s : kAllScenes) o.scenes.push_back(s.name);
+    std::sort(o.budgets.begin(), o.budgets.end());
+    if (o.budgets.empty() || o.budgets.front() <= 0) throw ParameterError("--budgets must be positive seconds");
+    return o;
+}
+
+// Cache key: the scene file's bytes and the loaded geometry (so an edited OBJ
+// also misses), plus the resolution and sample count in the name.
+uint64_t scene_key(const std::string& path, const Scene& scene) {
+    uint64_t h = hash_file(path);
+    auto mix = [&](const void* p, size_t n) {
+        const unsigned char* b = static_cast<const unsigned char*>(p);
+        for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+    };
+    const TriangleMesh& m = scene.mesh();
+    mix(m.positions.data(), m.positions.size() * sizeof(Vec3));
+    mix(m.material_ids.data(), m.material_ids.size() * sizeof(uint32_t));
+    for (const Material& mat : scene.materials()) mix(mat.name.data(), mat.name.size()), mix(&mat.emission, sizeof(Color));
+    return h;
+}
+
+// The reference's own relMSE expected from its noise: mean of Var[mean]/(r^2 + eps).
+double reference_self_relmse(const FrameBuffer& ref, double eps) {
+    const Image& c = ref.get("color");
+    const Image& v = ref.get("variance");
+    const double spp = std::stod(ref.metadata().at("spp"));
+    double s = 0;
+    for (int y = 0; y < c.height(); ++y)
+        for (int x = 0; x < c.width(); ++x)
+            for (int ch = 0; ch < 3; ++ch) {
+                const double r = c.at(x, y, ch);
+                s += double(v.at(x, y, ch)) / spp / (r * r + eps);
+            }
+    return s / (3.0 * double(c.pixel_count()));
+}
+
+FrameBuffer get_reference(const Options& o, const SceneSpec& spec, const Scene& scene, std::string& file_out) {
+    const long long ref_spp = o.ref_spp > 0 ? o.ref_spp : spec.ref_spp;
+    char name[256];
+    std::snprintf(name, sizeof name, "%s-%dx%d-spp%lld-%016llx.exr", spec.name.c_str(), scene.camera().width(),
+                  scene.camera().height(), ref_spp, (unsigned long long)scene_key(spec.path, scene));
+    const std::string file = (fs::path(o.cache) / name).string();
+    file_out = file;
+    if (!o.refresh && fs::exists(file)) {
+        FrameBuffer fb = read_exr(file);
+        if (fb.has("color") && fb.has("variance") && fb.metadata().count("spp")) return fb;
+        std::printf("  cached reference %s is incomplete; re-rendering\n", file.c_str());
+    }
+    std::printf("  rendering reference %s (PT, %lld spp) ...\n", file.c_str(), ref_spp);
+    std::fflush(stdout);
+    auto pt = integrator_registry().create("pt", Params());
+    RenderSettings st;
+    st.spp = ref_spp;
+    st.seed = 0x5eed5eedull;  // never one of the benchmark's seeds
+    st.threads = o.threads;
+    FrameBuffer fb;
+    int last = -1;
+    const RenderStats rs = pt->render(scene, st, fb, [&](const Progress& p) {
+        const int pct = int(p.fraction * 10) * 10;
+        if (pct != last) {  // the callback may run on any thread: a torn print is harmless
+            last = pct;
+            std::printf("    %3d%% (%.0f s)\n", pct, p.seconds);
+            std::fflush(stdout);
+        }
+    });
+    fb.metadata()["spp"] = std::to_string(rs.spp);
+    fb.metadata()["scene"] = spec.path;
+    fb.metadata()["reference_seconds"] = std::to_string(rs.seconds);
+    fs::create_directories(o.cache);
+    // Only the layers the benchmark reads: keeps the cache small.
+    FrameBuffer keep(fb.width(), fb.height());
+    keep.set("color", fb.get("color"));
+    keep.set("variance", fb.get("variance"));
+    keep.metadata() = fb.metadata();
+    const std::string tmp = file + ".tmp.exr";
+    write_exr(tmp, keep);
+    fs::rename(tmp, file);
+    std::printf("  reference done in %.1f s\n", rs.seconds);
+    return keep;
+}
+
+struct Row {
+    std::string scene, method;
+    int width = 0, height = 0;
+    double budget = 0, seconds = 0, render_s = 0, solve_s = 0;
+    long long spp = 0;
+    double relmse = 0, mse = 0, ssim = 0;
+};
+
+struct Equal {
+    Image pt, l1, l2;  // images at the crops budget
+    double e_pt = 0, e_l1 = 0, e_l2 = 0, budget = 0;
+};
+
+const char* const kMethods[] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal"};
+const Rgb8 kColors[] = {{30, 30, 30}, {215, 48, 39}, {44, 123, 182}, {120, 170, 90}};
+const char* const kLabels[] = {"PT", "G-PT + L1", "G-PT + L2", "G-PT primal (no solve)"};
+
+// The crop window (size s, stride s/4) where PT's relative squared error is largest:
+// where the methods differ most visibly.
+void worst_window(const Image& img, const Image& ref, int s, int& bx, int& by) {
+    double best = -1;
+    bx = by = 0;
+    const int stride = std::max(1, s / 4);
+    for (int y0 = 0; y0 + s <= img.height(); y0 += stride)
+        for (int x0 = 0; x0 + s <= img.width(); x0 += stride) {
+            double e = 0;
+            for (int y = y0; y < y0 + s; ++y)
+                for (int x = x0; x < x0 + s; ++x)
+                    for (int c = 0; c < 3; ++c) {
+                        const double r = ref.at(x, y, c), d = img.at(x, y, c) - r;
+                        e += d * d / (r * r + 0.01);
+                    }
+            if (e > best) best = e, bx = x0, by = y0;
+        }
+}
+
+Canvas magnify(const Canvas& c, int x0, int y0, int s, int k) {
+    Canvas out(s * k, s * k);
+    for (int y = 0; y < s * k; ++y)
+        for (int x = 0; x < s * k; ++x) out.set(x, y, c.get(x0 + x / k, y0 + y / k));
+    return out;
+}
+
+// Columns reference / PT / L1 / L2; row 1 full frames with the crop outlined,
+// row 2 the crop magnified. `frames` false leaves out row 1 (small docs images).
+Canvas compose_crops(const std::string& title, const Image& ref, const Equal& eq, bool frames, int crop_px) {
+    const float scale = auto_exposure(ref);
+    const Image* imgs[4] = {&ref, &eq.pt, &eq.l1, &eq.l2};
+    char buf[4][96];
+    std::snprintf(buf[0], 96, "Reference");
+    std::snprintf(buf[1], 96, "PT  relMSE %.3g", eq.e_pt);
+    std::snprintf(buf[2], 96, "G-PT+L1  relMSE %.3g", eq.e_l1);
+    std::snprintf(buf[3], 96, "G-PT+L2  relMSE %.3g", eq.e_l2);
+    const int W = ref.width(), H = ref.height();
+    const int s = std::max(8, std::min(W, H) / 4);
+    int cx, cy;
+    worst_window(eq.pt, ref, s, cx, cy);
+    const int k = std::max(1, crop_px / s);
+    const int colw = std::max(frames ? W : 0, s * k), gap = 6, head = 40, lab = 16;
+    const int rows_h = (frames ? H + gap : 0) + s * k;
+    Canvas out(4 * colw + 3 * gap, head + lab + rows_h + 4);
+    out.text(4, 4, title, {0, 0, 0});
+    for (int i = 0; i < 4; ++i) {
+        const int x = i * (colw + gap);
+        out.text(x + 2, head - 6, buf[i], {0, 0, 0});
+        const Canvas t = tonemap(*imgs[i], scale);
+        int y = head + lab - 6;
+        if (frames) {
+            out.blit(t, x, y);
+            const Rgb8 red{255, 40, 40};
+            out.line(x + cx, y + cy, x + cx + s, y + cy, red);
+            out.line(x + cx, y + cy + s, x + cx + s, y + cy + s, red);
+            out.line(x + cx, y + cy, x + cx, y + cy + s, red);
+            out.line(x + cx + s, y + cy, x + cx + s, y + cy + s, red);
+            y += H + gap;
+        }
+        out.blit(magnify(t, cx, cy, s, k), x, y);
+    }
+    return out;
+}
+
+std::string fmt_speedup(double t_pt, const ReachTime& r) {
+    char b[64];
+    if (r.how == Reach::NotReached || !(r.seconds > 0)) return "not reached";
+    std::snprintf(b, sizeof b, "%.2fx%s", t_pt / r.seconds,
+                  r.how == Reach::Interpolated ? "" : (r.how == Reach::ExtrapolatedBelow ? " (>=, extrap.)" : " (extrap.)"));
+    return b;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) try {
+    const Options o = parse(argc, argv);
+    fs::create_directories(o.out);
+    std::printf("equal-time benchmark: width %d, budgets", o.width);
+    for (double b : o.budgets) std::printf(" %g", b);
+    if (o.ref_spp > 0) std::printf(" s, reference PT %lld spp cached in %s\n", o.ref_spp, o.cache.c_str());
+    else std::printf(" s, reference PT (per-scene spp) cached in %s\n", o.cache.c_str());
+    std::printf("error: relMSE, thesis convention (per channel, eps = 0.01); G-PT time = render + reconstruction\n");
+    const auto t_start = Clock::now();
+    std::vector<Row> rows;
+    std::ostringstream summary;
+    summary << "| scene | resolution | PT relMSE at " << o.budgets.back()
+            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up |\n"
+            << "|---|---|---|---|---|---|---|\n";
+    std::vector<std::string> console;
+    std::ofstream csv(fs::path(o.out) / "results.csv");
+    csv << "scene,width,height,method,budget_s,seconds,render_s,solve_s,spp,relmse,mse,ssim\n";
+    for (const std::string& sname : o.scenes) {
+        auto it = std::find_if(kAllScenes.begin(), kAllScenes.end(), [&](const SceneSpec& s) { return s.name == sname; });
+        if (it == kAllScenes.end()) throw ParameterError("unknown scene " + sname);
+        const SceneSpec& spec = *it;
+        std::printf("\n== %s (%s)\n", spec.name.c_str(), spec.path.c_str());
+        const auto scene = load_scene_at_width(spec.path, o.width);
+        const int W = scene->camera().width(), H = scene->camera().height();
+        std::string ref_file;
+        const FrameBuffer ref_fb = get_reference(o, spec, *scene, ref_file);
+        const Image& ref = ref_fb.get("color");
+        const double ref_self = reference_self_relmse(ref_fb, 0.01);
+        std::printf("  reference %dx%d, %s spp, own estimated relMSE %.3g\n", W, H, ref_fb.metadata().at("spp").c_str(),
+                    ref_self);
+        if (o.references_only) continue;
+
+        auto pt = integrator_registry().create("pt", Params());
+        Params gp;
+        gp.set("reconstruct", std::string("none"));
+        auto gpt = integrator_registry().create("gpt", gp);
+        Params rp;
+        rp.set("alpha", 0.2);
+        // The L1 solve time (independent of the sample count) is taken out of G-PT's
+        // render budget so that render + solve matches the budget.
+        RenderSettings st;
+        st.threads = o.threads;
+        st.spp = 1;
+        FrameBuffer fb;
+        gpt->render(*scene, st, fb);
+        auto t0 = Clock::now();
+        (void)reconstruct("poisson-l1", rp, gradient_buffers(fb));
+        const double l1_est = since(t0);
+        std::printf("  L1 solve %.3f s at this resolution\n", l1_est);
+
+        std::vector<CurvePoint> curve[4];
+        Equal eq;
+        const size_t crop_i = o.budgets.size() / 2;
+        eq.budget = o.budgets[crop_i];
+        auto add = [&](int m, double budget, double secs, double render_s, double solve_s, long long spp, const Image& img) {
+            Row r{spec.name, kMethods[m], W, H, budget, secs, render_s, solve_s, spp, relmse(img, ref, RelMseOptions::thesis()),
+                  mse(img, ref), ssim(img, ref)};
+            rows.push_back(r);
+            curve[m].push_back({secs, r.relmse});
+            csv << r.scene << ',' << r.width << ',' << r.height << ',' << r.method << ',' << r.budget << ',' << r.seconds
+                << ',' << r.render_s << ',' << r.solve_s << ',' << r.spp << ',' << r.relmse << ',' << r.mse << ','
+                << r.ssim << '\n';
+            csv.flush();
+            std::printf("  %-10s budget %6.2f s  time %7.3f s  %5lld spp  relMSE %.4g\n", kMethods[m], budget, secs, spp,
+                        r.relmse);
+            return r.relmse;
+        };
+        for (size_t i = 0; i < o.budgets.size(); ++i) {
+            const double T = o.budgets[i];
+            st.spp = 0;
+            st.seed = uint64_t(1 + 2 * i);
+            st.time_budget = T;
+            t0 = Clock::now();
+            RenderStats rs = pt->render(*scene, st, fb);
+            double secs = since(t0);
+            const double e_pt = add(0, T, secs, secs, 0, rs.spp, fb.get("color"));
+            if (i == crop_i) eq.pt = fb.get("color"), eq.e_pt = e_pt;
+
+            st.seed = uint64_t(2 + 2 * i);
+            st.time_budget = std::max(T - l1_est, 0.1 * T);
+            t0 = Clock::now();
+            rs = gpt->render(*scene, st, fb);
+            const double render_s = since(t0);
+            const GradientBuffers gb = gradient_buffers(fb);
+            t0 = Clock::now();
+            Image l1 = reconstruct("poisson-l1", rp, gb);
+            const double s1 = since(t0);
+            t0 = Clock::now();
+            Image l2 = reconstruct("poisson-l2", rp, gb);
+            const double s2 = since(t0);
+            const double e1 = add(1, T, render_s + s1, render_s, s1, rs.spp, l1);
+            const double e2 = add(2, T, render_s + s2, render_s, s2, rs.spp, l2);
+            add(3, T, render_s, render_s, 0, rs.spp, fb.get("color"));
+            if (i == crop_i) eq.l1 = std::move(l1), eq.l2 = std::move(l2), eq.e_l1 = e1, eq.e_l2 = e2;
+        }
+
+        // Speed-up at PT's error at the largest budget.
+        const CurvePoint last = curve[0].back();
+        const ReachTime r1 = time_to_reach(curve[1], last.error), r2 = time_to_reach(curve[2], last.error),
+                        r3 = time_to_reach(curve[3], last.error);
+        char line[512];
+        std::snprintf(line, sizeof line, "%-14s PT relMSE %.4g at %.1f s (ref own %.2g) | L1 %s | L2 %s | primal %s",
+                      spec.name.c_str(), last.error, last.seconds, ref_self, fmt_speedup(last.seconds, r1).c_str(),
+                      fmt_speedup(last.seconds, r2).c_str(), fmt_speedup(last.seconds, r3).c_str());
+        console.push_back(line);
+        std::printf("  %s\n", line);
+        char cell[96];
+        std::snprintf(cell, sizeof cell, "%.3g", last.error);
+        summary << "| " << spec.name << " | " << W << "x" << H << " | " << cell << " | ";
+        std::snprintf(cell, sizeof cell, "%.2g", ref_self);
+        summary << cell << " | " << fmt_speedup(last.seconds, r1) << " | " << fmt_speedup(last.seconds, r2) << " | "
+                << fmt_speedup(last.seconds, r3) << " |\n";
+
+        LogLogPlot plot;
+        plot.title = spec.name + "  " + std::to_string(W) + "x" + std::to_string(H);
+        plot.xlabel = "wall time per image [s] (G-PT: render + reconstruction)";
+        plot.ylabel = "relMSE (eps 0.01)";
+        for (int m = 0; m < 4; ++m) plot.series.push_back({kLabels[m], kColors[m], curve[m], m == 3});
+        plot.hline = last.error;
+        plot.hline_label = "PT at the largest budget";
+        const Canvas pc = draw_loglog(plot);
+        pc.write_png((fs::path(o.out) / (spec.name + "-convergence.png")).string());
+        char title[160];
+        std::snprintf(title, sizeof title, "%s at equal time %.3g s (budget), relMSE eps 0.01", spec.name.c_str(), eq.budget);
+        compose_crops(title, ref, eq, true, 256).write_png((fs::path(o.out) / (spec.name + "-crops.png")).string());
+        if (!o.docs.empty()) {
+            pc.write_png((fs::path(o.docs) / (spec.name + "-convergence.png")).string());
+            compose_crops(title, ref, eq, false, 160).write_png((fs::path(o.docs) / (spec.name + "-crops.png")).string());
+        }
+    }
+    if (o.references_only) return 0;
+    std::ofstream(fs::path(o.out) / "summary.md") << summary.str();
+    std::printf("\nSpeed-up = time PT took at its largest budget / time the method needs to reach PT's relMSE there\n"
+                "(log-log interpolation between measured points; 'extrap.' = outside the measured range).\n");
+    for (const std::string& l : console) std::printf("%s\n", l.c_str());
+    std::printf("\n%s\nwrote %s/{results.csv,summary.md,*-convergence.png,*-crops.png} in %.0f s\n", summary.str().c_str(),
+                o.out.c_str(), since(t_start));
+    return 0;
+} catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_equal_time: %s\n", e.what());
+    return 1;
+}
