@@ -34,15 +34,19 @@ int main(int argc, char** argv) {
     const SceneFile sf = load_scene_file(path);
     const Scene& scene = *sf.scene;
     auto pt = integrator_registry().create("pt", Params());
-    auto gpt = integrator_registry().create("gpt", Params());
+    // Sample cost only: the reconstructions are timed by bench_reconstruct.
+    Params gp;
+    gp.set("reconstruct", std::string("none"));
+    auto gpt = integrator_registry().create("gpt", gp);
     RenderSettings st;
     std::vector<double> pt_rate, gpt_rate;
     FrameBuffer pt_fb, gpt_fb;
     for (int r = 0; r < repeats; ++r) {
         st.seed = uint64_t(r);
-        st.spp = 8;
+        // Enough samples that per-render fixed costs (buffers, finalisation) fade.
+        st.spp = 32;
         const RenderStats a = pt->render(scene, st, pt_fb);
-        st.spp = 4;
+        st.spp = 12;
         const RenderStats b = gpt->render(scene, st, gpt_fb);
         pt_rate.push_back(double(a.samples) / a.seconds);
         gpt_rate.push_back(double(b.samples) / b.seconds);

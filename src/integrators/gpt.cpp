@@ -205,14 +205,20 @@ protected:
             out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
         };
         compute_base_terms(scene, path, terms);
-        const PairEstimate alone = evaluate_pair(scene, path, terms, nullptr, mis_);
-        put(0, alone.base);
+        // The base alone (plain path-tracing MIS) is needed for the base-only primal and at the border.
+        PairEstimate alone;
+        bool have_alone = false;
+        const auto base_alone = [&]() -> const PairEstimate& {
+            if (!have_alone) alone = evaluate_pair(scene, path, terms, nullptr, mis_), have_alone = true;
+            return alone;
+        };
+        if (!primal_both_) put(0, base_alone().base);
         const int W = scene.camera().width(), H = scene.camera().height();
         for (int d = 0; d < kDirs; ++d) {
             const int nx = px + kDx[d], ny = py + kDy[d];
             if (nx < 0 || ny < 0 || nx >= W || ny >= H) {
                 // No neighbour to share with: the base alone estimates its pixel.
-                put(1, 0.25f * alone.base);
+                put(1, 0.25f * base_alone().base);
                 continue;
             }
             shift_camera_path(scene, *shift_, config_, path, Vec2(float(kDx[d]), float(kDy[d])), offset);

@@ -13,9 +13,13 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
     Ray ray = scene.camera().generate_ray(film);
     Color beta(1.f);
     for (int depth = 1;; ++depth) {
-        PathVertex x;
+        // Built in place: a vertex is a few hundred bytes and this is the hot loop.
+        PathVertex& x = path.v.emplace_back();
         ++path.rays;
-        if (!scene.intersect(ray, x.si)) return;
+        if (!scene.intersect(ray, x.si)) {
+            path.v.pop_back();
+            return;
+        }
         const Vec3 wo_world = -ray.d;
         x.wo = x.si.frame.to_local(wo_world);
         x.emitted = x.si.is_emitter() ? x.si.emitted(wo_world) : Color(0.f);
@@ -54,8 +58,7 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
                 else x.rr_survival = q, beta /= q;
             }
         }
-        path.v.push_back(x);
-        if (!path.v.back().scattered) return;
+        if (!x.scattered) return;
         ray = spawn_ray(x.si, x.si.frame.to_world(x.bs.wi));
     }
 }

@@ -58,25 +58,17 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     }
 }
 
-// The offset vertex that coincides with base vertex x_{k+1}, entered from `from`.
-OffsetVertex vertex_on_base(const PathVertex& next, const Vec3& from) {
-    OffsetVertex v;
+// Makes `v` the offset vertex that coincides with base vertex x_{k+1}, entered from `from`.
+void set_on_base(OffsetVertex& v, const PathVertex& next, const Vec3& from) {
     v.si = next.si;
     v.on_base = true;
     const Vec3 w = glm::normalize(from - next.si.p);
     v.wo = next.si.frame.to_local(w);
     v.emitted = next.si.is_emitter() ? next.si.emitted(w) : Color(0.f);
-    return v;
 }
 
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                  const Vec2& pixel_offset, OffsetPath& out);
-
-OffsetRecord record_at(const OffsetVertex& v) {
-    OffsetRecord r;
-    r.y = v;
-    return r;
-}
 
 }  // namespace
 
@@ -97,12 +89,14 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
     out.v.reserve(base.size());
     {
         const Ray ray = scene.camera().generate_ray(base.film + pixel_offset);
-        OffsetRecord r0;
+        OffsetRecord& r0 = out.v.emplace_back();
         ++out.rays;
-        if (!scene.intersect(ray, r0.y.si)) return;
+        if (!scene.intersect(ray, r0.y.si)) {
+            out.v.pop_back();
+            return;
+        }
         r0.y.wo = r0.y.si.frame.to_local(-ray.d);
         r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
-        out.v.push_back(r0);
     }
     for (size_t k = 0; k < base.size(); ++k) {
         OffsetRecord& rec = out.v[k];
@@ -133,24 +127,24 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
-            out.v.push_back(record_at(vertex_on_base(next, y.si.p)));
+            const Vec3 from = y.si.p;
+            set_on_base(out.v.emplace_back().y, next, from);  // out.v may move: `y` and `s` are dead here
             continue;
         }
-        OffsetRecord nr;
         const Ray ray = spawn_ray(y.si, y.si.frame.to_world(s.wi));
+        const bool reject_if_connectable = s.reject_if_connectable;
         ++out.rays;
-        if (!scene.intersect(ray, nr.y.si)) {
-            s.kind = ShiftStep::Kind::Fail;  // escaped: no emitter at infinity, so no more contribution
-            return;
-        }
-        if (s.reject_if_connectable &&
-            is_connectable(nr.y.si.material->bsdf->min_roughness(), next.u_classify, config)) {
-            s.kind = ShiftStep::Kind::Fail;
+        OffsetRecord& nr = out.v.emplace_back();  // invalidates `rec`, `y` and `s`
+        if (!scene.intersect(ray, nr.y.si) ||
+            (reject_if_connectable &&
+             is_connectable(nr.y.si.material->bsdf->min_roughness(), next.u_classify, config))) {
+            // Escaped (no emitter at infinity) or the inverse would have reconnected: no offset beyond.
+            out.v.pop_back();
+            out.v[k].step.kind = ShiftStep::Kind::Fail;
             return;
         }
         nr.y.wo = nr.y.si.frame.to_local(-ray.d);
         nr.y.emitted = nr.y.si.is_emitter() ? nr.y.si.emitted(-ray.d) : Color(0.f);
-        out.v.push_back(nr);
     }
 }
 
