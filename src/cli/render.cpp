@@ -15,6 +15,8 @@
 #include "gdr/io/exr.h"
 #include "gdr/io/png.h"
 #include "gdr/io/scene_file.h"
+#include "gdr/reconstruct/reconstructor.h"
+#include "gdr/shift/shift.h"
 
 namespace gdr::cli {
 
@@ -157,7 +159,8 @@ int render(const std::vector<std::string>& args) {
     }
     write_exr(out_path, fb);
     const std::string png = std::filesystem::path(out_path).replace_extension(".png").string();
-    const std::string preview = fb.has("color") ? "color" : fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.names().front();
+    // A gradient-domain render is shown as its L1 reconstruction, anything else as its colour.
+    const std::string preview = fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.has("color") ? "color" : fb.names().front();
     write_png_preview(png, fb.get(preview), float(exposure));
 
     fmt::print(stderr, "{} {} spp in {:.2f} s: {:.2f} M samples/s, {:.2f} M rays/s\n",
@@ -201,7 +204,12 @@ int info(const std::vector<std::string>& args) {
 
 int list_plugins() {
     fmt::print("integrators:\n");
-    for (const auto& n : integrator_registry().names()) fmt::print("  {:<10} {}\n", n, integrator_registry().description(n));
+    for (const auto& n : integrator_registry().names()) fmt::print("  {:<18} {}\n", n, integrator_registry().description(n));
+    fmt::print("shift mappings (gpt shift=NAME):\n");
+    for (const auto& n : shift_registry().names()) fmt::print("  {:<18} {}\n", n, shift_registry().description(n));
+    fmt::print("reconstructors (gdr reconstruct --method NAME):\n");
+    for (const auto& n : reconstructor_registry().names())
+        fmt::print("  {:<18} {}\n", n, reconstructor_registry().description(n));
     return 0;
 }
 
