@@ -20,13 +20,8 @@ struct LateReconnectShift {
         using namespace gdr;
         if (!shift::base_has_next(in)) return ShiftStep{};
         if (in.k == 0) return shift::replay(in);  // never reconnect from the first vertex
-        const bool both = shift::base_connectable(in, in.k) && shift::offset_connectable(in);
-        if (both && shift::base_connectable(in, in.k + 1)) return shift::reconnect(in);
-        // Where only x_{k+1} prevented a reconnection, the inverse would reconnect at a
-        // connectable y_{k+1}: the walker rejects that case, keeping the map invertible.
-        ShiftStep s = shift::replay(in);
-        s.reject_if_connectable = both;
-        return s;
+        // Later: reconnect where allowed, replay otherwise (keeping the map invertible).
+        return shift::reconnect_or(in, shift::replay);
     }
 };
 static_assert(gdr::ShiftMapping<LateReconnectShift>);

@@ -112,4 +112,13 @@ ShiftStep replay(const ShiftStepInput& in) {
     return s;
 }
 
+ShiftStep reconnect_or(const ShiftStepInput& in, ShiftStep (*fallback)(const ShiftStepInput&)) {
+    if (!base_has_next(in)) return fail();
+    const bool both = base_connectable(in, in.k) && offset_connectable(in);
+    if (both && base_connectable(in, in.k + 1)) return reconnect(in);
+    ShiftStep s = fallback(in);
+    s.reject_if_connectable = both;
+    return s;
+}
+
 }  // namespace gdr::shift

@@ -13,14 +13,7 @@ namespace gdr {
 struct HalfVectorShift {
     static constexpr std::string_view kName = "half-vector";
     /// Shifts vertex in.k.
-    ShiftStep step(const ShiftStepInput& in) const {
-        if (!shift::base_has_next(in)) return ShiftStep{};
-        const bool both = shift::base_connectable(in, in.k) && shift::offset_connectable(in);
-        if (both && shift::base_connectable(in, in.k + 1)) return shift::reconnect(in);
-        ShiftStep s = shift::half_vector(in);
-        s.reject_if_connectable = both;
-        return s;
-    }
+    ShiftStep step(const ShiftStepInput& in) const { return shift::reconnect_or(in, shift::half_vector); }
 };
 static_assert(ShiftMapping<HalfVectorShift>);
 

@@ -22,14 +22,7 @@ static_assert(ShiftMapping<ReplayShift>);
 struct ReplayReconnectShift {
     static constexpr std::string_view kName = "replay-reconnect";
     /// Shifts vertex in.k.
-    ShiftStep step(const ShiftStepInput& in) const {
-        if (!shift::base_has_next(in)) return ShiftStep{};
-        const bool both = shift::base_connectable(in, in.k) && shift::offset_connectable(in);
-        if (both && shift::base_connectable(in, in.k + 1)) return shift::reconnect(in);
-        ShiftStep s = shift::replay(in);
-        s.reject_if_connectable = both;
-        return s;
-    }
+    ShiftStep step(const ShiftStepInput& in) const { return shift::reconnect_or(in, shift::replay); }
 };
 static_assert(ShiftMapping<ReplayReconnectShift>);
 

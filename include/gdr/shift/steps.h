@@ -42,4 +42,10 @@ ShiftStep half_vector(const ShiftStepInput& in);
 /// kind (delta vs non-delta).
 ShiftStep replay(const ShiftStepInput& in);
 
+/// The pattern of the survey's shifts: reconnect as soon as x_k, y_k and x_{k+1}
+/// are connectable, otherwise take `fallback`'s own direction. When only x_{k+1}
+/// prevented the reconnection, the step is marked reject_if_connectable: the
+/// inverse would reconnect at a connectable y_{k+1}, so T must not go there.
+ShiftStep reconnect_or(const ShiftStepInput& in, ShiftStep (*fallback)(const ShiftStepInput&));
+
 }  // namespace gdr::shift
