@@ -1,0 +1,92 @@
+// Reconstructors: turn a frame's primal and gradient buffers into the final
+// image. They are created by name from a registry (like integrators) and work
+// on plain float images, so a renderer that knows nothing else of gdr can
+// fill three Images and call reconstruct() (examples/embed_reconstruct).
+//
+// Buffer conventions (ALGORITHMS.md sections 1 and 4): row 0 at the top,
+// dx(x,y) = I(x+1,y) - I(x,y) stored at the left pixel, dy(x,y) =
+// I(x,y+1) - I(x,y) stored at the top pixel; the last column of dx and the
+// last row of dy are unused. Directly visible emitters belong in `direct`,
+// not in primal / dx / dy: they are added after reconstruction, as the
+// reference implementation does.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "gdr/core/image.h"
+#include "gdr/core/params.h"
+#include "gdr/registry.h"
+
+namespace gdr {
+
+/// Non-owning pointers to one frame's buffers (radiance); all of one shape.
+struct GradientBuffers {
+    const Image* primal = nullptr;  ///< Colour estimate without directly visible emitters.
+    const Image* dx = nullptr;      ///< Horizontal forward differences (see file comment).
+    const Image* dy = nullptr;      ///< Vertical forward differences, y down.
+    const Image* direct = nullptr;  ///< Optional: directly visible emitters, added after solving.
+};
+
+/// Owning storage of one frame's buffers; `direct` is empty when absent.
+struct GradientFrame {
+    Image primal;  ///< Colour estimate without directly visible emitters (radiance).
+    Image dx;      ///< Horizontal forward differences (radiance).
+    Image dy;      ///< Vertical forward differences (radiance).
+    Image direct;  ///< Directly visible emitters (radiance), or empty.
+
+    /// Pointers to the members (direct = nullptr if empty); valid while *this lives.
+    GradientBuffers buffers() const;
+};
+
+/// Throws ParameterError if primal / dx / dy are missing or the four buffers
+/// differ in shape, and InputError naming the layer and the first pixel if
+/// any of them holds NaN or Inf.
+void check_gradient_buffers(const GradientBuffers& in);
+
+/// A reconstruction method. reconstruct() checks the input and adds `direct`
+/// around the method's own solve(), so no method can forget either.
+class Reconstructor {
+public:
+    virtual ~Reconstructor() = default;
+
+    /// The final image (same shape as the inputs, radiance): check_gradient_buffers,
+    /// then solve(), then + direct if present.
+    Image reconstruct(const GradientBuffers& in) const;
+
+    /// The method's parameters as "key=value" lines (for file headers).
+    virtual std::string describe() const = 0;
+
+protected:
+    /// Reconstructs from checked, finite, equally shaped primal / dx / dy;
+    /// must not add `direct` (the caller does).
+    virtual Image solve(const GradientBuffers& in) const = 0;
+};
+
+/// The process-wide reconstructor registry, built-ins registered on first use.
+Registry<Reconstructor>& reconstructor_registry();
+
+/// Adds gdr's built-in reconstructors to a registry (poisson-l2, poisson-l1, ...).
+void register_builtin_reconstructors(Registry<Reconstructor>& r);
+
+/// Adds "poisson-l2" (exact DCT solve; parameter alpha) and "poisson-l1"
+/// (IRLS with multigrid-preconditioned CG; alpha, iterations, cg_iterations,
+/// tolerance as in L1Options, and preset = fast (default) | reference, the
+/// latter running the reference implementation's own slow "L1D" algorithm).
+void register_poisson_reconstructors(Registry<Reconstructor>& r);
+
+/// One-call convenience: creates `method` from the registry with `params`
+/// (unknown keys are errors) and returns its reconstruction including direct.
+Image reconstruct(const std::string& method, const Params& params, const GradientBuffers& in);
+
+/// Loads the files the public Mitsuba-based G-PT implementation writes for
+/// one render, e.g. prefix ".../cbox": cbox-primal.exr or cbox-throughput.exr,
+/// cbox-dx.exr, cbox-dy.exr and optionally cbox-direct.exr. Throws InputError
+/// naming the missing file.
+GradientFrame load_reference_layout(const std::string& prefix);
+
+/// Views of the layers "primal", "dx", "dy" and optional "direct" of a gdr
+/// frame buffer (valid while `fb` lives); InputError naming a missing layer.
+GradientBuffers gradient_buffers(const FrameBuffer& fb);
+
+}  // namespace gdr

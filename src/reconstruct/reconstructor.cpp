@@ -1,0 +1,122 @@
+// Reconstructor front end: input checks, the registry, and loaders for the
+// buffer layouts gdr reads (see gdr/reconstruct/reconstructor.h).
+
+#include "gdr/reconstruct/reconstructor.h"
+
+#include <tbb/parallel_reduce.h>
+#include <tbb/blocked_range.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "gdr/io/exr.h"
+
+namespace gdr {
+namespace {
+
+std::string shape_text(const Image& img) {
+    return std::to_string(img.width()) + "x" + std::to_string(img.height()) + "x" + std::to_string(img.channels());
+}
+
+/// Like require_finite, but scans in parallel first: the exact (first-pixel)
+/// message is only worth a serial pass when something is wrong.
+void check_finite(const Image& img, const std::string& layer) {
+    const auto& v = img.values();
+    const bool bad = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, v.size(), 1 << 16), false,
+        [&](const tbb::blocked_range<size_t>& r, bool found) {
+            if (found) return true;
+            for (size_t i = r.begin(); i < r.end(); ++i)
+                if (!std::isfinite(v[i])) return true;
+            return false;
+        },
+        [](bool a, bool b) { return a || b; });
+    if (bad) require_finite(img, layer);
+}
+
+}  // namespace
+
+GradientBuffers GradientFrame::buffers() const {
+    return GradientBuffers{&primal, &dx, &dy, direct.empty() ? nullptr : &direct};
+}
+
+void check_gradient_buffers(const GradientBuffers& in) {
+    if (!in.primal || !in.dx || !in.dy)
+        throw ParameterError(std::string("reconstruction needs primal, dx and dy; missing: ") +
+                             (!in.primal ? "primal " : "") + (!in.dx ? "dx " : "") + (!in.dy ? "dy" : ""));
+    if (in.primal->empty()) throw ParameterError("reconstruction: the primal image is empty");
+    const std::pair<const Image*, const char*> layers[] = {
+        {in.primal, "primal"}, {in.dx, "dx"}, {in.dy, "dy"}, {in.direct, "direct"}};
+    for (const auto& [img, name] : layers) {
+        if (!img) continue;
+        if (!img->same_shape(*in.primal))
+            throw ParameterError(std::string("reconstruction: layer '") + name + "' is " + shape_text(*img) +
+                                 " but primal is " + shape_text(*in.primal));
+    }
+    for (const auto& [img, name] : layers)
+        if (img) check_finite(*img, name);
+}
+
+Image Reconstructor::reconstruct(const GradientBuffers& in) const {
+    check_gradient_buffers(in);
+    Image out = solve(in);
+    if (!out.same_shape(*in.primal))
+        throw RuntimeFailure("reconstructor returned a " + shape_text(out) + " image for " + shape_text(*in.primal) +
+                             " input");
+    if (in.direct) {
+        const auto& d = in.direct->values();
+        auto& o = out.values();
+        for (size_t i = 0; i < o.size(); ++i) o[i] += d[i];
+    }
+    return out;
+}
+
+void register_builtin_reconstructors(Registry<Reconstructor>& r) { register_poisson_reconstructors(r); }
+
+Registry<Reconstructor>& reconstructor_registry() {
+    static Registry<Reconstructor> r = [] {
+        Registry<Reconstructor> reg("reconstructor");
+        register_builtin_reconstructors(reg);
+        return reg;
+    }();
+    return r;
+}
+
+Image reconstruct(const std::string& method, const Params& params, const GradientBuffers& in) {
+    return reconstructor_registry().create(method, params)->reconstruct(in);
+}
+
+GradientFrame load_reference_layout(const std::string& prefix) {
+    namespace fs = std::filesystem;
+    GradientFrame f;
+    const std::string primal = prefix + "-primal.exr", throughput = prefix + "-throughput.exr";
+    if (fs::exists(primal)) f.primal = read_exr_rgb(primal);
+    else if (fs::exists(throughput)) f.primal = read_exr_rgb(throughput);
+    else throw InputError("reference layout: neither " + primal + " nor " + throughput + " exists");
+    for (auto [img, suffix] : {std::pair{&f.dx, "-dx.exr"}, std::pair{&f.dy, "-dy.exr"}}) {
+        const std::string path = prefix + suffix;
+        if (!fs::exists(path)) throw InputError("reference layout: missing " + path);
+        *img = read_exr_rgb(path);
+    }
+    if (fs::exists(prefix + "-direct.exr")) f.direct = read_exr_rgb(prefix + "-direct.exr");
+    const std::pair<const Image*, const char*> layers[] = {{&f.dx, "-dx.exr"}, {&f.dy, "-dy.exr"}, {&f.direct, "-direct.exr"}};
+    for (const auto& [img, suffix] : layers)
+        if (!img->empty() && !img->same_shape(f.primal))
+            throw InputError("reference layout: " + prefix + suffix + " is " + shape_text(*img) +
+                             " but the primal image is " + shape_text(f.primal));
+    return f;
+}
+
+GradientBuffers gradient_buffers(const FrameBuffer& fb) {
+    for (const char* name : {"primal", "dx", "dy"})
+        if (!fb.has(name)) {
+            std::string list;
+            for (const auto& n : fb.names()) list += (list.empty() ? "" : ", ") + n;
+            throw InputError(std::string("frame buffer has no layer '") + name + "' (layers: " +
+                             (list.empty() ? "none" : list) + ")");
+        }
+    return GradientBuffers{&fb.get("primal"), &fb.get("dx"), &fb.get("dy"),
+                           fb.has("direct") ? &fb.get("direct") : nullptr};
+}
+
+}  // namespace gdr
