@@ -1,7 +1,6 @@
 #include "gdr/scene/scene.h"
 
 #include <algorithm>
-#include <numeric>
 
 #include <embree3/rtcore.h>
 
@@ -110,8 +109,12 @@ Scene::~Scene() {
 }
 
 void Scene::build_lights() {
-    light_pdf_by_prim_.assign(mesh_.size(), 0.f);
+    // Selection by power then uniform by area gives pdf_a = luminance(Le) / total
+    // power: one value per material, so an emitter hit finds its pdf in a
+    // small table instead of a per-triangle array (a cache miss in big scenes).
+    light_pdf_by_material_.assign(materials_.size(), 0.f);
     std::vector<double> power;
+    double total = 0.0;
     for (uint32_t t = 0; t < mesh_.size(); ++t) {
         const uint32_t mid = mesh_.material_ids[t];
         const Material& mat = materials_[mid];
@@ -121,17 +124,14 @@ void Scene::build_lights() {
         const double area = 0.5 * glm::length(glm::cross(e1, e2));
         const double pw = double(luminance(mat.emission)) * area;
         if (!(pw > 0.0)) continue;
-        emitters_.push_back(Emitter{p[0], e1, e2, mid, t, float(area)});  // pdf_a set below
+        emitters_.push_back(Emitter{p[0], e1, e2, mid, t});
         power.push_back(pw);
+        total += pw;
     }
     stats_.emitters = emitters_.size();
     if (emitters_.empty()) return;
-    const double total = std::accumulate(power.begin(), power.end(), 0.0);
-    for (size_t i = 0; i < emitters_.size(); ++i) {
-        Emitter& e = emitters_[i];
-        e.pdf_a = float(power[i] / total / double(e.pdf_a));
-        light_pdf_by_prim_[e.prim] = e.pdf_a;
-    }
+    for (const Emitter& e : emitters_)
+        light_pdf_by_material_[e.material] = float(double(luminance(materials_[e.material].emission)) / total);
     // Walker/Vose alias table: bucket i holds emitter i with probability keep
     // and its alias otherwise; every bucket is drawn with probability 1/n.
     const size_t n = emitters_.size();
@@ -240,11 +240,13 @@ LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) con
     ls.p = e.p0 + b1 * e.e1 + b2 * e.e2;
     ls.n = glm::normalize(glm::cross(e.e1, e.e2));
     ls.prim = e.prim;
-    ls.pdf_a = e.pdf_a;
+    ls.pdf_a = light_pdf_by_material_[e.material];
     ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? materials_[e.material].emission : Color(0.f);
     return ls;
 }
 
-float Scene::light_pdf_a(uint32_t prim) const { return prim < light_pdf_by_prim_.size() ? light_pdf_by_prim_[prim] : 0.f; }
+float Scene::light_pdf_a(uint32_t prim) const {
+    return prim < hit_info_.size() ? light_pdf_by_material_[hit_info_[prim] & kMaterialMask] : 0.f;
+}
 
 }  // namespace gdr

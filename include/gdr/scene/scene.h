@@ -142,12 +142,11 @@ private:
     static constexpr uint32_t kSmooth = 1u << 31;   // vertex normals differ from the face normal
     static constexpr uint32_t kHasUv = 1u << 30;    // texture coordinates are not all zero
     static constexpr uint32_t kMaterialMask = kHasUv - 1;
-    // An emitting triangle as sample_light needs it (48 bytes).
+    // An emitting triangle as sample_light needs it (44 bytes).
     struct Emitter {
         Vec3 p0, e1, e2;      // corner and edges (the unit normal is recomputed: cheaper than a miss)
-        uint32_t material;    // index into materials_ (emitted radiance)
+        uint32_t material;    // index into materials_ (emitted radiance, pdf)
         uint32_t prim;        // triangle id
-        float pdf_a;          // area density including selection (1/m^2)
     };
     // One bucket of Walker's alias table: keep emitter i with probability keep, else take alias.
     struct AliasBucket {
@@ -162,7 +161,7 @@ private:
     std::vector<uint32_t> hit_info_;        // per triangle: material | kSmooth | kHasUv
     std::vector<Emitter> emitters_;         // emitting triangles, for sample_light()
     std::vector<AliasBucket> light_alias_;  // power-proportional emitter selection in O(1)
-    std::vector<float> light_pdf_by_prim_;  // area pdf per triangle (0 for non-emitters)
+    std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;
     RayObserver* observer_ = nullptr;
