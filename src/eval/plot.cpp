@@ -176,7 +176,13 @@ Canvas draw_loglog(const LogLogPlot& plot, int W, int H) {
     const int L = 70, R = W - 20, T = 52, B = H - 50;
     auto X = [&](double v) { return L + (std::log10(v) - std::log10(xlo)) / (std::log10(xhi) - std::log10(xlo)) * (R - L); };
     auto Y = [&](double v) { return B - (std::log10(v) - std::log10(ylo)) / (std::log10(yhi) - std::log10(ylo)) * (B - T); };
-    for (double t : log_ticks(xlo, xhi)) {
+    std::vector<double> xt = log_ticks(xlo, xhi);
+    if (!plot.xticks.empty()) {
+        xt.clear();
+        for (double t : plot.xticks)
+            if (t >= xlo && t <= xhi) xt.push_back(t);
+    }
+    for (double t : xt) {
         const int x = int(std::lround(X(t)));
         c.line(x, T, x, B, grid);
         c.line(x, B, x, B + 4, black);

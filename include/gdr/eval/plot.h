@@ -74,6 +74,7 @@ struct LogLogPlot {
     std::vector<Series> series;          ///< Curves, legend in this order.
     double hline = 0.0;                  ///< If > 0, a thin grey horizontal line at this y (e.g. a target error).
     std::string hline_label;             ///< Text next to the horizontal line.
+    std::vector<double> xticks;          ///< If set, x ticks at these values (e.g. the time budgets) instead of 1-2-5 steps.
 };
 
 /// Draws the plot on a new width x height canvas; non-positive points are skipped.
