@@ -61,12 +61,19 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
     bool prev_delta = true;  // camera rays see emitters without MIS
     float prev_pdf_w = 0.f;
     bool aux_done = false;
+    float u_light_next = 0.f;
     for (int depth = 1;; ++depth) {
         SurfaceInteraction si;
         ++r.rays;
-        // The light sample at this vertex is known before the hit: start its
-        // cache misses now so they overlap the traversal.
-        if (opt.nee) scene.prefetch_light(sampler.at(dims::vertex(depth) + dims::kLightSelect));
+        // Light samples are known before their vertices are: start their cache
+        // misses now so they overlap the traversal (this vertex's emitter, the
+        // next vertex's alias-table bucket).
+        const float u_light = depth == 1 ? sampler.at(dims::vertex(depth) + dims::kLightSelect) : u_light_next;
+        u_light_next = sampler.at(dims::vertex(depth + 1) + dims::kLightSelect);
+        if (opt.nee) {
+            scene.prefetch_light(u_light);
+            scene.prefetch_light_table(u_light_next);
+        }
         if (!scene.intersect(ray, si)) break;
         if (depth == 1) r.depth = si.t;
         const Vec3 wo_world = -ray.d;
@@ -98,7 +105,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
         sampler.set_dimension(block + dims::kRoulette + 1);  // where sequential draws left it before
 
         if (opt.nee && !pure_delta && scene.has_lights()) {
-            const LightSample ls = scene.sample_light(si.p, sampler.at(block + dims::kLightSelect),
+            const LightSample ls = scene.sample_light(si.p, u_light,
                                                       Vec2(sampler.at(block + dims::kLightPoint),
                                                            sampler.at(block + dims::kLightPoint + 1)));
             const Vec3 d = ls.p - si.p;

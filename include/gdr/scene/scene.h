@@ -95,15 +95,23 @@ public:
 
     /// Samples a point on an emitter by power then area (u_sel picks the triangle, u the point).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
-    /// Starts loading the emitter data a later sample_light(ref, u_sel, u) will read,
-    /// so the cache misses overlap other work (e.g. the ray cast before the vertex).
-    /// Only a hint: results never depend on it.
+    /// Light-sample prefetching, in two stages so that neither stalls: for a
+    /// sample_light(ref, u_sel, u) coming up soon, prefetch_light_table(u_sel)
+    /// starts loading the alias-table bucket (nothing is read); later,
+    /// prefetch_light(u_sel) reads that bucket and starts loading the emitter it
+    /// selects. A path tracer calls the first one vertex ahead and the second
+    /// before the ray cast that reaches the vertex. Hints only: results never change.
+    void prefetch_light_table(float u_sel) const {
+        if (!emitters_.empty()) prefetch(&light_alias_[light_bucket(u_sel)]);
+    }
+    /// Second stage of light-sample prefetching (see prefetch_light_table).
     void prefetch_light(float u_sel) const {
+        if (emitters_.empty()) return;
         const size_t n = emitters_.size();
-        if (n == 0) return;
-        const size_t b = std::min(size_t(double(u_sel) * double(n)), n - 1);
-        prefetch(&light_alias_[b]);
-        prefetch(&emitters_[b]);  // the bucket's own emitter: the likelier outcome
+        const double x = double(u_sel) * double(n);
+        const size_t b = std::min(size_t(x), n - 1);
+        const AliasBucket bucket = light_alias_[b];
+        prefetch(&emitters_[float(x - double(b)) < bucket.keep ? b : bucket.alias]);
     }
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
@@ -125,6 +133,10 @@ public:
 
 private:
     void build_lights();
+    // The alias-table bucket u_sel falls in.
+    size_t light_bucket(float u_sel) const {
+        return std::min(size_t(double(u_sel) * double(emitters_.size())), emitters_.size() - 1);
+    }
     // A cache-line prefetch the optimiser cannot drop (GCC discards
     // __builtin_prefetch in some inlined contexts at -O2).
     static void prefetch(const void* p) {
