@@ -25,6 +25,20 @@ void for_blocks(int h, F&& f) {
     tbb::parallel_for(0, blocks, [&](int b) { f(b * kRows, std::min(h, (b + 1) * kRows)); });
 }
 
+/// sum a[i] b[i] in double; four accumulators so it vectorises without -ffast-math.
+inline double dot(const float* a, const float* b, int n) {
+    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+        s0 += double(a[i]) * b[i];
+        s1 += double(a[i + 1]) * b[i + 1];
+        s2 += double(a[i + 2]) * b[i + 2];
+        s3 += double(a[i + 3]) * b[i + 3];
+    }
+    for (; i < n; ++i) s0 += double(a[i]) * b[i];
+    return (s0 + s1) + (s2 + s3);
+}
+
 /// Sum over neighbours j of w_ij x_j at pixel i of one row (Up / Down: the
 /// row above / below exists; eyu / eyd: the vertical edge weights).
 template <bool Up, bool Down>
@@ -103,31 +117,32 @@ void pre_smooth_row(int w, int red, const float* __restrict b, const float* __re
 }
 
 /// The black half sweep after the coarse correction, with the piecewise-
-/// constant prolongation folded in: neighbour values are x + cx(aggregate).
-/// Only black pixels are written (a Gauss-Seidel update ignores the old
-/// value), so the corrected red values are never stored: the following red
-/// half sweep overwrites them anyway. cx / cxu / cxd: coarse rows of this row
-/// and of the rows above / below.
+/// constant prolongation folded in: neighbour values are src + cx(aggregate),
+/// src being the pre-smoothing values. Only black pixels of dst are written
+/// (a Gauss-Seidel update ignores the old value), so the corrected red values
+/// are never stored: the following red half sweep replaces them anyway.
+/// cx / cxu / cxd: coarse rows of this row and of the rows above / below.
 template <bool Up, bool Down>
-void post_black_row(int w, int black, const float* __restrict b, float* __restrict x, const float* __restrict xu,
-                    const float* __restrict xd, const float* __restrict cx, const float* __restrict cxu,
-                    const float* __restrict cxd, const float* __restrict ex, const float* __restrict eyu,
-                    const float* __restrict eyd, const float* __restrict inv) {
+void post_black_row(int w, int black, const float* __restrict b, const float* __restrict src,
+                    const float* __restrict srcu, const float* __restrict srcd, const float* __restrict cx,
+                    const float* __restrict cxu, const float* __restrict cxd, const float* __restrict ex,
+                    const float* __restrict eyu, const float* __restrict eyd, const float* __restrict inv,
+                    float* __restrict dst) {
     auto edge = [&](int i) {
         float v = b[i];
-        if (i > 0) v += ex[i - 1] * (x[i - 1] + cx[(i - 1) / 2]);
-        if (i < w - 1) v += ex[i] * (x[i + 1] + cx[(i + 1) / 2]);
-        if constexpr (Up) v += eyu[i] * (xu[i] + cxu[i / 2]);
-        if constexpr (Down) v += eyd[i] * (xd[i] + cxd[i / 2]);
-        x[i] = v * inv[i];
+        if (i > 0) v += ex[i - 1] * (src[i - 1] + cx[(i - 1) / 2]);
+        if (i < w - 1) v += ex[i] * (src[i + 1] + cx[(i + 1) / 2]);
+        if constexpr (Up) v += eyu[i] * (srcu[i] + cxu[i / 2]);
+        if constexpr (Down) v += eyd[i] * (srcd[i] + cxd[i / 2]);
+        dst[i] = v * inv[i];
     };
     int i = black;
     if (i == 0) edge(0), i = 2;
     for (; i < w - 1; i += 2) {
-        float v = b[i] + ex[i - 1] * (x[i - 1] + cx[(i - 1) / 2]) + ex[i] * (x[i + 1] + cx[(i + 1) / 2]);
-        if constexpr (Up) v += eyu[i] * (xu[i] + cxu[i / 2]);
-        if constexpr (Down) v += eyd[i] * (xd[i] + cxd[i / 2]);
-        x[i] = v * inv[i];
+        float v = b[i] + ex[i - 1] * (src[i - 1] + cx[(i - 1) / 2]) + ex[i] * (src[i + 1] + cx[(i + 1) / 2]);
+        if constexpr (Up) v += eyu[i] * (srcu[i] + cxu[i / 2]);
+        if constexpr (Down) v += eyd[i] * (srcd[i] + cxd[i / 2]);
+        dst[i] = v * inv[i];
     }
     if (i == w - 1) edge(i);
 }
@@ -257,83 +272,118 @@ void WeightedMultigrid::cycle(size_t l, int channels) {
     const float* ey = L.ey;
     const float* inv = L.inv_diag.data();
 
-    // Pre-smoothing from x = 0: red then black, in one pass.
-    for_blocks(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const size_t row = size_t(y) * w, up = y > 0 ? row - w : row, down = y < h - 1 ? row + w : row;
-            for (int ch = 0; ch < channels; ++ch) {
-                const float* b = L.b + ch * n;
-                dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
-                    pre_smooth_row<Up, Down>(w, y & 1, b + row, b + up, b + down, inv + row, inv + up, inv + down,
-                                             ex + row, ey + up, ey + row, L.x + ch * n + row);
-                });
-            }
-        }
-    });
-
-    // Residual, summed straight into the coarse right-hand side. After the
-    // black half sweep the black pixels satisfy their equations exactly, so
-    // only the red pixels carry residual.
+    // Pre-smoothing from x = 0 (red, then black) and the residual summed
+    // straight into the coarse right-hand side, in one pass over row blocks.
+    // After the black half sweep the black pixels satisfy their equations
+    // exactly, so only red pixels carry residual; a red pixel's vertical
+    // neighbours are black pixels of the rows above and below, which for the
+    // block's first and last row belong to other blocks: they are recomputed
+    // here (they depend on b only), never read from memory another task writes.
+    // Blocks start at even rows (kRows is even), so each coarse row has one owner.
     Level& C = levels_[l + 1];
     const size_t cn = size_t(C.w) * C.h;
     float* cb = C.b_own.data();
-    for_blocks(C.h, [&](int J0, int J1) {
-        for (int J = J0; J < J1; ++J)
-            for (int ch = 0; ch < channels; ++ch) {
-                float* out = cb + ch * cn + size_t(J) * C.w;
-                std::fill(out, out + C.w, 0.f);
-                for (int y = 2 * J; y < std::min(h, 2 * J + 2); ++y) {
-                    const size_t row = size_t(y) * w, up = y > 0 ? row - w : row, down = y < h - 1 ? row + w : row;
-                    const float* x = L.x + ch * n;
-                    dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
-                        residual_row<Up, Down>(w, y & 1, L.b + ch * n + row, x + row, ex + row, x + up, ey + up,
-                                               x + down, ey + row, L.diag.data() + row, out);
-                    });
-                }
+    for_blocks(h, [&](int y0, int y1) {
+        thread_local std::vector<float> halo;
+        if (halo.size() < 2 * size_t(w)) halo.resize(2 * size_t(w));
+        float* above = halo.data();  // row y0 - 1 as the pre-smoothing leaves it
+        float* below = above + w;    // row y1
+        auto smooth_row = [&](int y, const float* b, float* out) {
+            const size_t row = size_t(y) * w, up = y > 0 ? row - w : row, down = y < h - 1 ? row + w : row;
+            dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
+                pre_smooth_row<Up, Down>(w, y & 1, b + row, b + up, b + down, inv + row, inv + up, inv + down,
+                                         ex + row, ey + up, ey + row, out);
+            });
+        };
+        for (int ch = 0; ch < channels; ++ch) {
+            const float* b = L.b + ch * n;
+            float* x = L.xs.data() + ch * n;
+            for (int y = y0; y < y1; ++y) smooth_row(y, b, x + size_t(y) * w);
+            if (y0 > 0) smooth_row(y0 - 1, b, above);
+            if (y1 < h) smooth_row(y1, b, below);
+            float* out0 = cb + ch * cn + size_t(y0 / 2) * C.w;
+            std::fill(out0, out0 + size_t((y1 - y0 + 1) / 2) * C.w, 0.f);
+            for (int y = y0; y < y1; ++y) {
+                const size_t row = size_t(y) * w;
+                const float* xu = y == y0 ? above : x + row - w;  // (not read when y == 0)
+                const float* xd = y + 1 == y1 ? below : x + row + w;  // (not read when y == h - 1)
+                const float* eyu = y > 0 ? ey + row - w : ey + row;
+                float* out = cb + ch * cn + size_t(y / 2) * C.w;
+                dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
+                    residual_row<Up, Down>(w, y & 1, b + row, x + row, ex + row, xu, eyu, xd, ey + row,
+                                           L.diag.data() + row, out);
+                });
             }
+        }
     });
     cycle(l + 1, channels);
 
     // Post-smoothing in reverse colour order (black, then red) keeps the
-    // cycle symmetric; the prolongation is folded into the black sweep.
+    // cycle symmetric; the prolongation is folded into the black sweep, and
+    // both half sweeps are one pass: the black values read from the
+    // pre-smoothing buffer (xs, not written here) and go to x, then the red
+    // values read those. The black values of the rows just outside a block
+    // are recomputed into a halo, never read from another task's output.
+    // On the finest level the caller may want <b, x> (CG's r.z): each row is
+    // final in this pass, so it is summed while in cache.
+    const bool dots = l == 0 && dots_;
+    if (dots) dot_parts_.assign(size_t((h + kRows - 1) / kRows) * channels, 0.0);
     for_blocks(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const size_t row = size_t(y) * w, up = y > 0 ? row - w : row, down = y < h - 1 ? row + w : row;
-            const int yu = y > 0 ? y - 1 : y, yd = y < h - 1 ? y + 1 : y;
-            for (int ch = 0; ch < channels; ++ch) {
-                float* x = L.x + ch * n;
-                const float* cx = C.x + ch * cn;
+        thread_local std::vector<float> halo;
+        if (halo.size() < 2 * size_t(w)) halo.resize(2 * size_t(w));
+        float *above = halo.data(), *below = above + w;  // black values of rows y0 - 1 and y1
+        for (int ch = 0; ch < channels; ++ch) {
+            const float* b = L.b + ch * n;
+            const float* xs = L.xs.data() + ch * n;
+            float* x = L.x + ch * n;
+            const float* cx = C.x + ch * cn;
+            auto black_row = [&](int y, float* dst) {
+                const size_t row = size_t(y) * w, up = y > 0 ? row - w : row, down = y < h - 1 ? row + w : row;
+                const int yu = y > 0 ? y - 1 : y, yd = y < h - 1 ? y + 1 : y;
                 dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
-                    post_black_row<Up, Down>(w, 1 - (y & 1), L.b + ch * n + row, x + row, x + up, x + down,
+                    post_black_row<Up, Down>(w, 1 - (y & 1), b + row, xs + row, xs + up, xs + down,
                                              cx + size_t(y / 2) * C.w, cx + size_t(yu / 2) * C.w,
-                                             cx + size_t(yd / 2) * C.w, ex + row, ey + up, ey + row, inv + row);
+                                             cx + size_t(yd / 2) * C.w, ex + row, ey + up, ey + row, inv + row, dst);
                 });
-            }
-        }
-    });
-    for_blocks(h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y) {
-            const size_t row = size_t(y) * w, up = y > 0 ? row - w : row, down = y < h - 1 ? row + w : row;
-            for (int ch = 0; ch < channels; ++ch) {
-                float* x = L.x + ch * n;
+            };
+            for (int y = y0; y < y1; ++y) black_row(y, x + size_t(y) * w);
+            if (y0 > 0) black_row(y0 - 1, above);
+            if (y1 < h) black_row(y1, below);
+            for (int y = y0; y < y1; ++y) {
+                const size_t row = size_t(y) * w;
+                const float* xu = y == y0 ? above : x + row - w;  // (not read when y == 0)
+                const float* xd = y + 1 == y1 ? below : x + row + w;  // (not read when y == h - 1)
+                const float* eyu = y > 0 ? ey + row - w : ey + row;
                 dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
-                    gs_row<Up, Down>(w, y & 1, L.b + ch * n + row, x + row, ex + row, x + up, ey + up, x + down,
-                                     ey + row, inv + row);
+                    gs_row<Up, Down>(w, y & 1, b + row, x + row, ex + row, xu, eyu, xd, ey + row, inv + row);
                 });
+                if (dots) dot_parts_[size_t(y0 / kRows) * channels + ch] += dot(b + row, x + row, w);
             }
         }
     });
 }
 
-void WeightedMultigrid::apply(const float* r, float* z, int channels) {
-    for (size_t l = 1; l < levels_.size(); ++l) {
+void WeightedMultigrid::apply(const float* r, float* z, int channels, double* r_dot_z) {
+    for (size_t l = 0; l < levels_.size(); ++l) {
         Level& L = levels_[l];
         const size_t ln = size_t(L.w) * L.h * channels;
+        if (L.xs.size() < ln && l + 1 < levels_.size()) L.xs.resize(ln);
+        if (l == 0) continue;
         if (L.b_own.size() < ln) L.b_own.resize(ln), L.x_own.resize(ln);
         L.b = L.b_own.data(), L.x = L.x_own.data();
     }
     levels_[0].b = r, levels_[0].x = z;
+    dots_ = r_dot_z != nullptr && levels_.size() > 1;
     cycle(0, channels);
+    if (!r_dot_z) return;
+    const size_t n = size_t(levels_[0].w) * levels_[0].h;
+    for (int ch = 0; ch < channels; ++ch) r_dot_z[ch] = 0.0;
+    if (!dots_) {  // a single level: solved exactly, no sweep to piggyback on
+        for (int ch = 0; ch < channels; ++ch) r_dot_z[ch] = dot(r + ch * n, z + ch * n, int(n));
+        return;
+    }
+    // Block partial sums added in block order: the result does not depend on scheduling.
+    for (size_t k = 0; k < dot_parts_.size(); ++k) r_dot_z[k % channels] += dot_parts_[k];
 }
 
 }  // namespace gdr::detail

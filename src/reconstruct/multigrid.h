@@ -34,8 +34,10 @@ public:
     void setup(int width, int height, const float* d, const float* ex, const float* ey);
 
     /// z ~= A^-1 r by one V-cycle, for `channels` planar images (plane stride
-    /// width * height); r and z must not alias.
-    void apply(const float* r, float* z, int channels);
+    /// width * height); r and z must not alias. If r_dot_z is given it
+    /// receives <r, z> per channel (summed in a fixed order, so deterministic),
+    /// computed during the last sweep instead of another pass over memory.
+    void apply(const float* r, float* z, int channels, double* r_dot_z = nullptr);
 
 private:
     struct Level {
@@ -46,11 +48,14 @@ private:
         const float* b = nullptr;           // right-hand side (planar, channels)
         float* x = nullptr;                 // solution (planar, channels)
         std::vector<float> b_own, x_own;    // storage for coarse levels
+        std::vector<float> xs;              // pre-smoothing values (read by the fused post-smoothing)
     };
     void cycle(std::size_t level, int channels);
     void coarsest_solve(Level& L, int channels);
     std::vector<Level> levels_;
     std::vector<double> chol_;  // dense Cholesky factor of the coarsest operator (lower, row-major)
+    bool dots_ = false;                // this apply() wants <r, z>
+    std::vector<double> dot_parts_;   // per row block and channel
 };
 
 }  // namespace gdr::detail

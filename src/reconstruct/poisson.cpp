@@ -157,7 +157,7 @@ void set_unit_weights(const Shape& s, double alpha, OpWeights& W) {
 struct Workspace {
     Shape s;
     double alpha;
-    std::vector<float> c, gx, gy, x, r, z, p, q;
+    std::vector<float> c, gx, gy, x, r, z, p, p2, q;
     OpWeights W;
     std::unique_ptr<DctSolver> dct;
     detail::WeightedMultigrid mg;
@@ -165,7 +165,7 @@ struct Workspace {
     explicit Workspace(const PoissonProblem& prob) : s(shape_of(prob)), alpha(prob.alpha) {
         const size_t len = s.n * s.c;
         c.resize(len), gx.resize(len), gy.resize(len), x.resize(len);
-        r.resize(len), z.resize(len), p.resize(len), q.resize(len);
+        r.resize(len), z.resize(len), p.resize(len), p2.resize(len), q.resize(len);
         to_planar(s, prob.primal.data, c.data());
         to_planar(s, prob.dx.data, gx.data());
         to_planar(s, prob.dy.data, gy.data());
@@ -243,6 +243,45 @@ Sums apply_operator(const Shape& s, const OpWeights& W, const float* p, float* q
                 if (up && down) operator_row<true, true>(w, a0, wx, wyu, wy, pr - w, pr, pr + w, qr);
                 else if (up) operator_row<true, false>(w, a0, wx, wyu, wy, pr - w, pr, nullptr, qr);
                 else if (down) operator_row<false, true>(w, a0, wx, wyu, wy, nullptr, pr, pr + w, qr);
+                else operator_row<false, false>(w, a0, wx, wyu, wy, nullptr, pr, nullptr, qr);
+                acc[ch] += dot(pr, qr, size_t(w));
+            }
+        }
+    });
+}
+
+/// p = z + beta p_old and q = A p in one pass (returns <p, q> per channel):
+/// A p at a row needs p of the rows above and below, which for a block's
+/// first and last row belong to other blocks; they are recomputed from z and
+/// p_old (read-only here) rather than read back. p must not alias z or p_old.
+Sums update_and_apply(const Shape& s, const OpWeights& W, const float* z, const float* p_old, const float beta[4],
+                      float* p, float* q) {
+    const int w = s.w, h = s.h;
+    return sum_rows(h, [&](int y0, int y1, Sums& acc) {
+        float* halo = scratch(size_t(w));  // rows y0 - 1 and y1 of p
+        float *above = halo, *below = halo + w;
+        for (int ch = 0; ch < s.c; ++ch) {
+            const size_t plane = ch * s.n;
+            const float b = beta[ch];
+            auto form = [&](int y, float* out) {
+                const float *zr = z + plane + size_t(y) * w, *pr = p_old + plane + size_t(y) * w;
+                for (int i = 0; i < w; ++i) out[i] = zr[i] + b * pr[i];
+            };
+            for (int y = y0; y < y1; ++y) form(y, p + plane + size_t(y) * w);
+            if (y0 > 0) form(y0 - 1, above);
+            if (y1 < h) form(y1, below);
+            for (int y = y0; y < y1; ++y) {
+                const size_t row = size_t(y) * w;
+                const float *a0 = W.a0w0.data() + row, *wx = W.wx.data() + row, *wy = W.wy.data() + row;
+                const float* wyu = y > 0 ? wy - w : wy;
+                const float* pr = p + plane + row;
+                const float* pu = y == y0 ? above : pr - w;
+                const float* pd = y + 1 == y1 ? below : pr + w;
+                float* qr = q + plane + row;
+                const bool up = y > 0, down = y + 1 < h;
+                if (up && down) operator_row<true, true>(w, a0, wx, wyu, wy, pu, pr, pd, qr);
+                else if (up) operator_row<true, false>(w, a0, wx, wyu, wy, pu, pr, nullptr, qr);
+                else if (down) operator_row<false, true>(w, a0, wx, wyu, wy, nullptr, pr, pd, qr);
                 else operator_row<false, false>(w, a0, wx, wyu, wy, nullptr, pr, nullptr, qr);
                 acc[ch] += dot(pr, qr, size_t(w));
             }
@@ -363,10 +402,16 @@ void set_weight_means(const Shape& s, OpWeights& W) {
 
 /// (P)CG on A x = b (operator weights W), from and into ws.x. If `initial`
 /// is given, ws.r already holds b - A x and `initial` its |r|^2 per channel.
-CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* initial = nullptr) {
+/// final_residual = false skips updating r after the last iteration (IRLS
+/// recomputes it from scratch anyway); the report then holds the residual
+/// before that iteration.
+CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* initial = nullptr,
+                bool final_residual = true) {
     const Shape& s = ws.s;
     const int C = s.c;
-    float *x = ws.x.data(), *r = ws.r.data(), *z = ws.z.data(), *p = ws.p.data(), *q = ws.q.data();
+    const size_t len = s.n * C;
+    float *x = ws.x.data(), *r = ws.r.data(), *q = ws.q.data();
+    float* bufs[3] = {ws.z.data(), ws.p.data(), ws.p2.data()};  // z and directions rotate through these
 
     Sums rr = initial ? *initial : normal_residual(ws, W);
     const double r0 = total(rr);
@@ -379,8 +424,12 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
     const bool plain = opt.preconditioner == Preconditioner::none;
     // out = M^-1 r; returns <r, out> per channel.
     auto precondition = [&](float* out) -> Sums {
-        if (opt.preconditioner == Preconditioner::multigrid) ws.mg.apply(r, out, C);
-        else ws.dct_solver().solve(r, out, C, W.mean_a0w0, W.mean_gradient);
+        Sums d{0, 0, 0, 0};
+        if (opt.preconditioner == Preconditioner::multigrid) {
+            ws.mg.apply(r, out, C, d.data());
+            return d;
+        }
+        ws.dct_solver().solve(r, out, C, W.mean_a0w0, W.mean_gradient);
         return sum_rows(s.h, [&](int y0, int y1, Sums& acc) {
             for (int ch = 0; ch < C; ++ch) {
                 const size_t o0 = ch * s.n + size_t(y0) * s.w, o1 = ch * s.n + size_t(y1) * s.w;
@@ -388,32 +437,36 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
             }
         });
     };
-    // The search direction. Preconditioned, the first one is z itself, and
-    // later z's are written into whichever of z / p is not the direction, so
-    // p = z + beta p can be formed in place without copies (it matters at
-    // 1-2 iterations per IRLS step). Plain CG updates r in place, so its
-    // first direction must be a copy.
+    auto other = [&](const float* a, const float* b) {
+        for (float* buf : bufs)
+            if (buf != a && buf != b) return buf;
+        return bufs[0];  // unreachable: three buffers, two excluded
+    };
+    // The first direction is z itself (preconditioned) or a copy of r (plain
+    // CG updates r in place). Later directions p = z + beta p are formed in
+    // the same pass as A p (see update_and_apply), which needs z, the old p
+    // and the new p in three different buffers.
     Sums rz;
     const float* dir;
     if (plain) {
         rz = rr;
-        std::copy(r, r + s.n * C, p);
-        dir = p;
+        std::copy(r, r + len, bufs[1]);
+        dir = bufs[1];
     } else {
-        rz = precondition(z);
-        dir = z;
+        rz = precondition(bufs[0]);
+        dir = bufs[0];
     }
+    Sums pq = apply_operator(s, W, dir, q);
 
     for (int it = 1; it <= opt.max_iterations; ++it) {
-        const Sums pq = apply_operator(s, W, dir, q);
         float step[4] = {0, 0, 0, 0};
         for (int ch = 0; ch < C; ++ch) step[ch] = pq[ch] > 0 ? float(rz[ch] / pq[ch]) : 0.f;
-        const bool last = it == opt.max_iterations && opt.tolerance <= 0;
+        const bool last = it == opt.max_iterations && !final_residual;  // no further use for r or |r|
         rr = sum_rows(s.h, [&](int y0, int y1, Sums& acc) {
             for (int ch = 0; ch < C; ++ch) {
                 const size_t o0 = ch * s.n + size_t(y0) * s.w, o1 = ch * s.n + size_t(y1) * s.w;
                 const float a = step[ch];
-                if (last) {  // the residual is not needed any more
+                if (last) {
                     for (size_t i = o0; i < o1; ++i) x[i] += a * dir[i];
                     continue;
                 }
@@ -431,22 +484,16 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
         const float* znew = r;
         Sums rz_new = rr;
         if (!plain) {
-            float* target = dir == z ? p : z;
+            float* target = other(dir, nullptr);
             rz_new = precondition(target);
             znew = target;
         }
         float beta[4] = {0, 0, 0, 0};
         for (int ch = 0; ch < C; ++ch) beta[ch] = rz[ch] > 0 ? float(rz_new[ch] / rz[ch]) : 0.f;
         rz = rz_new;
-        // p = znew + beta dir; p may be znew or dir itself (element-wise in place).
-        for_rows(s.h, [&](int y0, int y1) {
-            for (int ch = 0; ch < C; ++ch) {
-                const size_t o0 = ch * s.n + size_t(y0) * s.w, o1 = ch * s.n + size_t(y1) * s.w;
-                const float b = beta[ch];
-                for (size_t i = o0; i < o1; ++i) p[i] = znew[i] + b * dir[i];
-            }
-        });
-        dir = p;
+        float* pnew = other(dir, znew);
+        pq = update_and_apply(s, W, znew, dir, beta, pnew, q);
+        dir = pnew;
     }
     return rep;
 }
@@ -639,7 +686,7 @@ L1Report poisson_l1(const PoissonProblem& prob, const L1Options& opt, float* out
     for (int k = 1; k < opt.iterations; ++k, eps *= opt.eps_factor) {
         const float e = std::max(float(eps), kEpsFloor * max_norm);
         const Sums rr = reweight_and_residual(ws, e, ws.W, max_norm);
-        rep.cg_iterations += run_cg(ws, ws.W, cg, &rr).iterations;
+        rep.cg_iterations += run_cg(ws, ws.W, cg, &rr, false).iterations;
         rep.irls_iterations = k + 1;
     }
     to_interleaved(ws.s, ws.x.data(), out);

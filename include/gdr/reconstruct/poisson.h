@@ -114,6 +114,7 @@ struct CgOptions {
     double tolerance = 0.0;
     Preconditioner preconditioner = Preconditioner::multigrid;  ///< See Preconditioner.
 };
+
 /// What a CG solve did.
 struct CgReport {
     int iterations = 0;                ///< CG iterations taken.
@@ -161,10 +162,7 @@ struct L1Options {
     Preconditioner preconditioner = Preconditioner::multigrid;
 };
 
-/// What an L1 solve did (the weights of a step are the reference's
-/// 1 / (|e_r| + eps) up to a common factor, which does not change the solution;
-/// eps is never taken below 1e-9 times the largest row residual, where float
-/// arithmetic would lose the small weights: the default schedule stays above).
+/// What an L1 solve did.
 struct L1Report {
     int irls_iterations = 0;      ///< IRLS iterations run (including the first).
     int cg_iterations = 0;        ///< CG iterations summed over all steps.
@@ -173,7 +171,11 @@ struct L1Report {
 
 /// The L1 (robust, consistent but biased) reconstruction into `out`
 /// (interleaved, same shape as the inputs) by IRLS with the reference's
-/// weights and eps schedule eps_k = eps_initial * eps_factor^(k-1).
+/// weights and eps schedule eps_k = eps_initial * eps_factor^(k-1). A step's
+/// weights are the reference's 1 / (|e_r| + eps) up to a common factor, which
+/// does not change the solution; eps is never taken below 1e-9 times the
+/// largest row residual of the previous iterate, where float arithmetic would
+/// lose the small weights (the default schedule stays well above).
 L1Report poisson_l1(const PoissonProblem& problem, const L1Options& options, float* out);
 
 /// The L1 energy of x (radiance): sum over rows of the Euclidean norm of the
