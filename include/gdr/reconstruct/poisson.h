@@ -141,7 +141,7 @@ RowWeights irls_weights(const PoissonProblem& problem, const float* x, double ep
 /// bench_reconstruct.cpp): L1 energy within 0.2% of a converged (40-step,
 /// up to 30 CG per step) solve on the reference cbox buffers and on them tiled
 /// to 1280x720, against a budget of 1%; one CG iteration per step gives 0.35%
-/// at about 70% of the time; the output is within relMSE ~1e-6 of the
+/// at about 60% of the time; the output is within relMSE ~1e-6 of the
 /// reference's own 20 x 50-plain-CG algorithm (which is itself not converged:
 /// its result moves by 4e-7 with 100 CG iterations per step).
 struct L1Options {
