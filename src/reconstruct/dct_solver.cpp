@@ -193,7 +193,7 @@ DctSolver::~DctSolver() = default;
 int DctSolver::width() const { return impl_->plans->w; }
 int DctSolver::height() const { return impl_->plans->h; }
 
-void DctSolver::solve(const float* rhs, float* x, int channels, double a, double b) {
+void DctSolver::solve(const float* rhs, float* x, int channels, double a, double b, bool interleaved) {
     if (channels < 1) throw ParameterError("DctSolver::solve: no channels");
     if (!(a >= 0) || !(b >= 0) || !std::isfinite(a) || !std::isfinite(b))
         throw ParameterError("DctSolver::solve: coefficients must be finite and non-negative");
@@ -207,19 +207,25 @@ void DctSolver::solve(const float* rhs, float* x, int channels, double a, double
     const int row_blocks = (h + s.row_block - 1) / s.row_block;
     const int col_blocks = (wc + s.col_block - 1) / s.col_block;
 
-    // 1. Gather in Makhoul order and transform the rows.
-    tbb::parallel_for(0, channels * row_blocks, [&](int task) {
-        const int c = task / row_blocks, r0 = (task % row_blocks) * s.row_block;
+    // 1. Gather in Makhoul order and transform the rows. A task takes a block
+    // of rows of every channel, so interleaved input is read once.
+    const size_t stride = interleaved ? size_t(channels) : 1;  // between neighbouring pixels of one channel
+    auto element0 = [&](int c, int y) {  // offset of pixel (0, y) of channel c
+        return interleaved ? size_t(y) * w * channels + c : c * n + size_t(y) * w;
+    };
+    tbb::parallel_for(0, row_blocks, [&](int task) {
+        const int r0 = task * s.row_block;
         const int rows = std::min(s.row_block, h - r0);
-        float* v = real + c * s.real_plane;
-        const float* src = rhs + c * n;
-        for (int m1 = r0; m1 < r0 + rows; ++m1) {
-            const float* in = src + size_t(s.src_y[m1]) * w;
-            float* out = v + size_t(m1) * w;
-            for (int m2 = 0; m2 < w; ++m2) out[m2] = in[s.src_x[m2]];
+        for (int c = 0; c < channels; ++c) {
+            float* v = real + c * s.real_plane;
+            for (int m1 = r0; m1 < r0 + rows; ++m1) {
+                const float* in = rhs + element0(c, s.src_y[m1]);
+                float* out = v + size_t(m1) * w;
+                for (int m2 = 0; m2 < w; ++m2) out[m2] = in[size_t(s.src_x[m2]) * stride];
+            }
+            fftwf_execute_dft_r2c(rows == s.row_block ? s.row_fwd : s.row_fwd_tail, v + size_t(r0) * w,
+                                  cplx + c * s.cplx_plane + size_t(r0) * wc);
         }
-        fftwf_execute_dft_r2c(rows == s.row_block ? s.row_fwd : s.row_fwd_tail, v + size_t(r0) * w,
-                              cplx + c * s.cplx_plane + size_t(r0) * wc);
     });
 
     // 2. Per column block: forward column FFT, divide in the DCT domain, inverse column FFT.
@@ -284,17 +290,18 @@ void DctSolver::solve(const float* rhs, float* x, int channels, double a, double
     });
 
     // 3. Inverse row transforms and scatter back to natural order.
-    tbb::parallel_for(0, channels * row_blocks, [&](int task) {
-        const int c = task / row_blocks, r0 = (task % row_blocks) * s.row_block;
+    tbb::parallel_for(0, row_blocks, [&](int task) {
+        const int r0 = task * s.row_block;
         const int rows = std::min(s.row_block, h - r0);
-        float* v = real + c * s.real_plane;
-        fftwf_execute_dft_c2r(rows == s.row_block ? s.row_inv : s.row_inv_tail, cplx + c * s.cplx_plane + size_t(r0) * wc,
-                              v + size_t(r0) * w);
-        float* dst = x + c * n;
-        for (int m1 = r0; m1 < r0 + rows; ++m1) {
-            float* out = dst + size_t(s.src_y[m1]) * w;
-            const float* in = v + size_t(m1) * w;
-            for (int m2 = 0; m2 < w; ++m2) out[s.src_x[m2]] = in[m2];
+        for (int c = 0; c < channels; ++c) {
+            float* v = real + c * s.real_plane;
+            fftwf_execute_dft_c2r(rows == s.row_block ? s.row_inv : s.row_inv_tail,
+                                  cplx + c * s.cplx_plane + size_t(r0) * wc, v + size_t(r0) * w);
+            for (int m1 = r0; m1 < r0 + rows; ++m1) {
+                float* out = x + element0(c, s.src_y[m1]);
+                const float* in = v + size_t(m1) * w;
+                for (int m2 = 0; m2 < w; ++m2) out[size_t(s.src_x[m2]) * stride] = in[m2];
+            }
         }
     });
 }

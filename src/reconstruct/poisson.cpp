@@ -586,40 +586,33 @@ void poisson_l2(const PoissonProblem& prob, float* out) {
     const Shape s = shape_of(prob);
     const float a2 = float(prob.alpha * prob.alpha);
     const int w = s.w, C = s.c;
-    // The scratch of the last size solved on this thread is kept: a renderer
-    // reconstructs frame after frame, and fresh pages cost about a tenth of
-    // the solve.
-    struct Scratch {
-        std::unique_ptr<DctSolver> dct;
-        std::vector<float> rhs;
-    };
-    thread_local Scratch scratch;
-    if (!scratch.dct || scratch.dct->width() != s.w || scratch.dct->height() != s.h)
-        scratch.dct = std::make_unique<DctSolver>(s.w, s.h);
-    std::vector<float>& rhs = scratch.rhs;
-    rhs.resize(s.n * C);
-    // rhs = alpha^2 c + Dx^T gx + Dy^T gy straight from the interleaved inputs
-    // (no planar copies: this path is one pass, the DCT, and one pass back).
+    // rhs = alpha^2 c + Dx^T gx + Dy^T gy, interleaved, straight into `out`;
+    // the DCT solve then reads and writes `out` in place: one pass to build
+    // the right-hand side is all this adds to the bare solve.
     const float *c = prob.primal.data, *gx = prob.dx.data, *gy = prob.dy.data;
+    const size_t rowlen = size_t(w) * C;
     for_rows(s.h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y)
-            for (int ch = 0; ch < C; ++ch) {
-                float* b = rhs.data() + ch * s.n + size_t(y) * w;
-                const size_t i0 = size_t(y) * w * C + ch;
-                const float *cr = c + i0, *gxr = gx + i0, *gyr = gy + i0;
-                b[0] = a2 * cr[0] - (w > 1 ? gxr[0] : 0.f);
-                for (int x = 1; x < w - 1; ++x) b[x] = a2 * cr[size_t(x) * C] + gxr[size_t(x - 1) * C] - gxr[size_t(x) * C];
-                if (w > 1) b[w - 1] = a2 * cr[size_t(w - 1) * C] + gxr[size_t(w - 2) * C];
-                if (y > 0) {
-                    const float* gyu = gyr - size_t(w) * C;
-                    for (int x = 0; x < w; ++x) b[x] += gyu[size_t(x) * C];
-                }
-                if (y < s.h - 1)
-                    for (int x = 0; x < w; ++x) b[x] -= gyr[size_t(x) * C];
+        for (int y = y0; y < y1; ++y) {
+            const size_t o = size_t(y) * rowlen;
+            const float *cr = c + o, *gxr = gx + o, *gyr = gy + o;
+            float* b = out + o;
+            for (size_t k = 0; k < rowlen; ++k) b[k] = a2 * cr[k];
+            for (size_t k = 0; k + C < rowlen; ++k) b[k] -= gxr[k];       // -gx(x) for x < w - 1
+            for (size_t k = C; k < rowlen; ++k) b[k] += gxr[k - C];       // +gx(x - 1) for x > 0
+            if (y + 1 < s.h)
+                for (size_t k = 0; k < rowlen; ++k) b[k] -= gyr[k];
+            if (y > 0) {
+                const float* gyu = gyr - rowlen;
+                for (size_t k = 0; k < rowlen; ++k) b[k] += gyu[k];
             }
+        }
     });
-    scratch.dct->solve(rhs.data(), rhs.data(), C, prob.alpha * prob.alpha, 1.0);
-    to_interleaved(s, rhs.data(), out);
+    // The solver of the last size solved on this thread is kept: a renderer
+    // reconstructs frame after frame, and fresh scratch pages cost about a
+    // tenth of the solve.
+    thread_local std::unique_ptr<DctSolver> dct;
+    if (!dct || dct->width() != s.w || dct->height() != s.h) dct = std::make_unique<DctSolver>(s.w, s.h);
+    dct->solve(out, out, C, prob.alpha * prob.alpha, 1.0, /*interleaved=*/true);
 }
 
 CgReport poisson_weighted(const PoissonProblem& prob, const RowWeights* weights, const CgOptions& options, float* x) {

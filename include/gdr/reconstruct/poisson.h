@@ -69,10 +69,11 @@ public:
     DctSolver(const DctSolver&) = delete;
     DctSolver& operator=(const DctSolver&) = delete;
 
-    /// x = (a I + b L)^-1 rhs for `channels` planar images (plane stride
-    /// width * height). a > 0, b >= 0; rhs and x may alias. If a == 0 the
+    /// x = (a I + b L)^-1 rhs for `channels` images, planar (plane stride
+    /// width * height) or, if `interleaved`, with channels interleaved per
+    /// pixel like Image. a > 0, b >= 0; rhs and x may alias. If a == 0 the
     /// constant component is left out (the minimum-norm Poisson solution).
-    void solve(const float* rhs, float* x, int channels, double a, double b);
+    void solve(const float* rhs, float* x, int channels, double a, double b, bool interleaved = false);
 
     int width() const;   ///< Columns this solver was made for.
     int height() const;  ///< Rows this solver was made for.
@@ -93,10 +94,10 @@ struct RowWeights {
 
 /// The exact L2 solution (unbiased) into `out` (width * height * channels
 /// floats, interleaved like the inputs): one DCT solve of
-/// (alpha^2 I + L) x = alpha^2 c + Dx^T gx + Dy^T gy. Keeps the scratch of the
-/// last image size it solved (about 3 floats per value) per calling thread,
-/// so that a renderer reconstructing frame after frame does not pay for
-/// fresh memory each time.
+/// (alpha^2 I + L) x = alpha^2 c + Dx^T gx + Dy^T gy, built in `out` and
+/// solved in place. Keeps the DctSolver of the last image size it solved
+/// (scratch of about 2 floats per value) per calling thread, so that a
+/// renderer reconstructing frame after frame does not pay for fresh memory.
 void poisson_l2(const PoissonProblem& problem, float* out);
 
 /// Preconditioner of a CG solve.
