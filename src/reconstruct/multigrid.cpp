@@ -25,19 +25,6 @@ void for_blocks(int h, F&& f) {
     tbb::parallel_for(0, blocks, [&](int b) { f(b * kRows, std::min(h, (b + 1) * kRows)); });
 }
 
-/// sum a[i] b[i] in double; four accumulators so it vectorises without -ffast-math.
-inline double dot(const float* a, const float* b, int n) {
-    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-    int i = 0;
-    for (; i + 4 <= n; i += 4) {
-        s0 += double(a[i]) * b[i];
-        s1 += double(a[i + 1]) * b[i + 1];
-        s2 += double(a[i + 2]) * b[i + 2];
-        s3 += double(a[i + 3]) * b[i + 3];
-    }
-    for (; i < n; ++i) s0 += double(a[i]) * b[i];
-    return (s0 + s1) + (s2 + s3);
-}
 
 /// Sum over neighbours j of w_ij x_j at pixel i of one row (Up / Down: the
 /// row above / below exists; eyu / eyd: the vertical edge weights).
@@ -357,7 +344,7 @@ void WeightedMultigrid::cycle(size_t l, int channels) {
                 dispatch_rows(y > 0, y < h - 1, [&]<bool Up, bool Down>() {
                     gs_row<Up, Down>(w, y & 1, b + row, x + row, ex + row, xu, eyu, xd, ey + row, inv + row);
                 });
-                if (dots) dot_parts_[size_t(y0 / kRows) * channels + ch] += dot(b + row, x + row, w);
+                if (dots) dot_parts_[size_t(y0 / kRows) * channels + ch] += dot(b + row, x + row, size_t(w));
             }
         }
     });
@@ -379,7 +366,7 @@ void WeightedMultigrid::apply(const float* r, float* z, int channels, double* r_
     const size_t n = size_t(levels_[0].w) * levels_[0].h;
     for (int ch = 0; ch < channels; ++ch) r_dot_z[ch] = 0.0;
     if (!dots_) {  // a single level: solved exactly, no sweep to piggyback on
-        for (int ch = 0; ch < channels; ++ch) r_dot_z[ch] = dot(r + ch * n, z + ch * n, int(n));
+        for (int ch = 0; ch < channels; ++ch) r_dot_z[ch] = dot(r + ch * n, z + ch * n, size_t(n));
         return;
     }
     // Block partial sums added in block order: the result does not depend on scheduling.

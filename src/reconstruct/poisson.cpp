@@ -84,20 +84,6 @@ inline double sum(const float* a, size_t n) {
     return (s0 + s1) + (s2 + s3);
 }
 
-/// sum a[i] b[i] in double. Four independent accumulators let the compiler
-/// vectorise without -ffast-math (a single accumulator is a serial chain).
-inline double dot(const float* a, const float* b, size_t n) {
-    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-    size_t i = 0;
-    for (; i + 4 <= n; i += 4) {
-        s0 += double(a[i]) * b[i];
-        s1 += double(a[i + 1]) * b[i + 1];
-        s2 += double(a[i + 2]) * b[i + 2];
-        s3 += double(a[i + 3]) * b[i + 3];
-    }
-    for (; i < n; ++i) s0 += double(a[i]) * b[i];
-    return (s0 + s1) + (s2 + s3);
-}
 
 /// Per-thread scratch rows (3 of them).
 float* scratch(size_t n) {
@@ -203,7 +189,7 @@ Sums normal_residual(Workspace& ws, const OpWeights& W) {
                     const float *xu = x - w, *gyu = gy - w, *wyu = wy - w;
                     for (int i = 0; i < w; ++i) r[i] += wyu[i] * (gyu[i] - (x[i] - xu[i]));
                 }
-                acc[ch] += dot(r, r, size_t(w));
+                acc[ch] += detail::dot(r, r, size_t(w));
             }
         }
     });
@@ -244,7 +230,7 @@ Sums apply_operator(const Shape& s, const OpWeights& W, const float* p, float* q
                 else if (up) operator_row<true, false>(w, a0, wx, wyu, wy, pr - w, pr, nullptr, qr);
                 else if (down) operator_row<false, true>(w, a0, wx, wyu, wy, nullptr, pr, pr + w, qr);
                 else operator_row<false, false>(w, a0, wx, wyu, wy, nullptr, pr, nullptr, qr);
-                acc[ch] += dot(pr, qr, size_t(w));
+                acc[ch] += detail::dot(pr, qr, size_t(w));
             }
         }
     });
@@ -283,7 +269,7 @@ Sums update_and_apply(const Shape& s, const OpWeights& W, const float* z, const 
                 else if (up) operator_row<true, false>(w, a0, wx, wyu, wy, pu, pr, nullptr, qr);
                 else if (down) operator_row<false, true>(w, a0, wx, wyu, wy, nullptr, pr, pd, qr);
                 else operator_row<false, false>(w, a0, wx, wyu, wy, nullptr, pr, nullptr, qr);
-                acc[ch] += dot(pr, qr, size_t(w));
+                acc[ch] += detail::dot(pr, qr, size_t(w));
             }
         }
     });
@@ -376,7 +362,7 @@ Sums reweight_and_residual(Workspace& ws, float eps, OpWeights& W, float& max_no
                     const float* eyu = ey_up + size_t(ch) * w;
                     for (int i = 0; i < w; ++i) r[i] += wy_up[i] * eyu[i];
                 }
-                acc[ch] += dot(r, r, size_t(w));
+                acc[ch] += detail::dot(r, r, size_t(w));
             }
             std::swap(ey, ey_up);
             wy_up = wy;
@@ -433,7 +419,7 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
         return sum_rows(s.h, [&](int y0, int y1, Sums& acc) {
             for (int ch = 0; ch < C; ++ch) {
                 const size_t o0 = ch * s.n + size_t(y0) * s.w, o1 = ch * s.n + size_t(y1) * s.w;
-                acc[ch] += dot(r + o0, out + o0, o1 - o0);
+                acc[ch] += detail::dot(r + o0, out + o0, o1 - o0);
             }
         });
     };
@@ -474,7 +460,7 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
                     x[i] += a * dir[i];
                     r[i] -= a * q[i];
                 }
-                acc[ch] += dot(r + o0, r + o0, o1 - o0);
+                acc[ch] += detail::dot(r + o0, r + o0, o1 - o0);
             }
         });
         rep.iterations = it;
