@@ -64,4 +64,17 @@ private:
     std::map<std::string, Entry> entries_;
 };
 
+/// The process-wide registry of one plugin family: made on first use (thread-safe
+/// static initialisation) and filled by `register_builtins`. Each family's accessor
+/// (integrator_registry(), shift_registry(), ...) is a one-line call to this.
+template <typename Base>
+Registry<Base>& process_registry(const char* kind, void (*register_builtins)(Registry<Base>&)) {
+    static Registry<Base> r = [&] {
+        Registry<Base> reg(kind);
+        register_builtins(reg);
+        return reg;
+    }();
+    return r;
+}
+
 }  // namespace gdr

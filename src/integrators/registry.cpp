@@ -12,12 +12,7 @@ void register_builtin_integrators(Registry<Integrator>& r) {
 }
 
 Registry<Integrator>& integrator_registry() {
-    static Registry<Integrator> r = [] {
-        Registry<Integrator> reg("integrator");
-        register_builtin_integrators(reg);
-        return reg;
-    }();
-    return r;
+    return process_registry<Integrator>("integrator", register_builtin_integrators);
 }
 
 static long long spp_of(const FrameBuffer& fb, const char* which) {

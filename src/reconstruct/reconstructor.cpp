@@ -83,12 +83,7 @@ Image Reconstructor::reconstruct(const GradientBuffers& in) const {
 void register_builtin_reconstructors(Registry<Reconstructor>& r) { register_poisson_reconstructors(r); }
 
 Registry<Reconstructor>& reconstructor_registry() {
-    static Registry<Reconstructor> r = [] {
-        Registry<Reconstructor> reg("reconstructor");
-        register_builtin_reconstructors(reg);
-        return reg;
-    }();
-    return r;
+    return process_registry<Reconstructor>("reconstructor", register_builtin_reconstructors);
 }
 
 Image reconstruct(const std::string& method, const Params& params, const GradientBuffers& in) {

@@ -161,12 +161,7 @@ void register_builtin_shifts(Registry<Shift>& r) {
 }
 
 Registry<Shift>& shift_registry() {
-    static Registry<Shift> r = [] {
-        Registry<Shift> reg("shift mapping");
-        register_builtin_shifts(reg);
-        return reg;
-    }();
-    return r;
+    return process_registry<Shift>("shift mapping", register_builtin_shifts);
 }
 
 }  // namespace gdr
