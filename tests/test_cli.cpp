@@ -21,14 +21,18 @@ namespace {
 
 const std::string kScenes = GDR_SOURCE_DIR "/tests/scenes/";
 
-// A fresh directory for this process's outputs.
+// A fresh directory for this process's outputs, removed when the process ends.
+struct OutDir {
+    fs::path path = fs::temp_directory_path() / ("gdr-test-cli-" + std::to_string(getpid()));
+    OutDir() { fs::create_directories(path); }
+    ~OutDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+};
 const fs::path& out_dir() {
-    static const fs::path dir = [] {
-        const fs::path d = fs::temp_directory_path() / ("gdr-test-cli-" + std::to_string(getpid()));
-        fs::create_directories(d);
-        return d;
-    }();
-    return dir;
+    static const OutDir dir;
+    return dir.path;
 }
 
 std::string out(const std::string& name) { return (out_dir() / name).string(); }
