@@ -45,29 +45,24 @@ std::vector<double> gaussian_taps() {
 /// Gaussian blur of a w x h plane, truncated at the border and renormalised
 /// by the in-image weight (separable, so each pass normalises on its own).
 std::vector<double> blur(const std::vector<double>& in, int w, int h, const std::vector<double>& taps) {
+    // One 1-D pass along rows (step 1) or columns (step w); `n` samples per line.
+    const auto pass = [&](const std::vector<double>& src, std::vector<double>& dst, int lines, int n, size_t line_step,
+                          size_t step) {
+        for (int l = 0; l < lines; ++l)
+            for (int i = 0; i < n; ++i) {
+                double s = 0, ws = 0;
+                for (int k = -5; k <= 5; ++k) {
+                    const int j = i + k;
+                    if (j < 0 || j >= n) continue;
+                    s += taps[k + 5] * src[l * line_step + size_t(j) * step];
+                    ws += taps[k + 5];
+                }
+                dst[l * line_step + size_t(i) * step] = s / ws;
+            }
+    };
     std::vector<double> tmp(in.size()), out(in.size());
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            double s = 0, ws = 0;
-            for (int k = -5; k <= 5; ++k) {
-                const int xx = x + k;
-                if (xx < 0 || xx >= w) continue;
-                s += taps[k + 5] * in[size_t(y) * w + xx];
-                ws += taps[k + 5];
-            }
-            tmp[size_t(y) * w + x] = s / ws;
-        }
-    for (int y = 0; y < h; ++y)
-        for (int x = 0; x < w; ++x) {
-            double s = 0, ws = 0;
-            for (int k = -5; k <= 5; ++k) {
-                const int yy = y + k;
-                if (yy < 0 || yy >= h) continue;
-                s += taps[k + 5] * tmp[size_t(yy) * w + x];
-                ws += taps[k + 5];
-            }
-            out[size_t(y) * w + x] = s / ws;
-        }
+    pass(in, tmp, h, w, size_t(w), 1);
+    pass(tmp, out, w, h, 1, size_t(w));
     return out;
 }
 
