@@ -124,14 +124,16 @@ void Scene::build_lights() {
         const double area = 0.5 * glm::length(glm::cross(e1, e2));
         const double pw = double(luminance(mat.emission)) * area;
         if (!(pw > 0.0)) continue;
-        emitters_.push_back(Emitter{p[0], e1, e2, mid, t});
+        emitters_.push_back(Emitter{p[0], e1, e2, glm::normalize(glm::cross(e1, e2)), mid, t, 0.f});
         power.push_back(pw);
         total += pw;
     }
     stats_.emitters = emitters_.size();
     if (emitters_.empty()) return;
-    for (const Emitter& e : emitters_)
+    for (Emitter& e : emitters_) {
         light_pdf_by_material_[e.material] = float(double(luminance(materials_[e.material].emission)) / total);
+        e.pdf_a = light_pdf_by_material_[e.material];
+    }
     // Walker/Vose alias table: bucket i holds emitter i with probability keep
     // and its alias otherwise; every bucket is drawn with probability 1/n.
     const size_t n = emitters_.size();
@@ -238,9 +240,9 @@ LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) con
     const float su = std::sqrt(u.x);
     const float b1 = u.y * su, b2 = su - b1;
     ls.p = e.p0 + b1 * e.e1 + b2 * e.e2;
-    ls.n = glm::normalize(glm::cross(e.e1, e.e2));
+    ls.n = e.n;
     ls.prim = e.prim;
-    ls.pdf_a = light_pdf_by_material_[e.material];
+    ls.pdf_a = e.pdf_a;
     ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? materials_[e.material].emission : Color(0.f);
     return ls;
 }

@@ -36,6 +36,11 @@ public:
         return abs_cos_theta(wi) * kInvPi;
     }
 
+    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (!same_hemisphere(wo, wi)) return {};
+        return {kd_->eval(uv) * kInvPi, abs_cos_theta(wi) * kInvPi};
+    }
+
     uint32_t flags() const override { return kReflection | kDiffuse; }
     Color albedo(const Vec2& uv) const override { return kd_->eval(uv); }
     float min_roughness() const override { return 1.f; }

@@ -68,6 +68,12 @@ public:
         return pdf_up(up(wo), up(wi));
     }
 
+    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (!same_hemisphere(wo, wi)) return {};
+        const Vec3 wo_up = up(wo), wi_up = up(wi);
+        return {eval_up(wo_up, wi_up, uv), pdf_up(wo_up, wi_up)};
+    }
+
     uint32_t flags() const override { return kReflection | kDiffuse | kGlossy; }
     Color albedo(const Vec2& uv) const override { return kd_->eval(uv) * scale_ + ks_; }
     float min_roughness() const override { return std::min(alpha_, 1.f); }

@@ -114,13 +114,13 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
                 const float dist = std::sqrt(dist2);
                 const Vec3 wi_world = d / dist;
                 const Vec3 wi = si.frame.to_local(wi_world);
-                const Color f = bsdf.eval(wo, wi, si.uv);
-                if (!is_black(f)) {
+                const BsdfEval fe = bsdf.eval_pdf(wo, wi, si.uv);
+                if (!is_black(fe.f)) {
                     ++r.rays;
                     if (scene.visible(si.p, si.ng, ls.p, ls.n)) {
                         const float pdf_l = pdf_area_to_solid_angle(ls.pdf_a, dist, glm::dot(ls.n, -wi_world));
-                        const float w = power_heuristic(pdf_l, bsdf.pdf(wo, wi, si.uv));
-                        r.radiance += beta * f * abs_cos_theta(wi) * ls.radiance * (w / pdf_l);
+                        const float w = power_heuristic(pdf_l, fe.pdf);
+                        r.radiance += beta * fe.f * abs_cos_theta(wi) * ls.radiance * (w / pdf_l);
                     }
                 }
             }

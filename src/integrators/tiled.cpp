@@ -68,11 +68,12 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         offset.push_back(stride), stride += s.channels;
         var_offset.push_back(s.variance ? var_stride : -1), var_stride += s.variance ? s.channels : 0;
     }
-    // Which squared-sum channel (or -1) each sample value feeds.
-    std::vector<int> var_index(stride, -1);
+    // The sample values whose squares are summed, in squared-sum order (the
+    // sample loop walks this list instead of testing every channel).
+    std::vector<int> squared;
     for (size_t s = 0; s < specs.size(); ++s)
         if (specs[s].variance)
-            for (int c = 0; c < specs[s].channels; ++c) var_index[offset[s] + c] = var_offset[s] + c;
+            for (int c = 0; c < specs[s].channels; ++c) squared.push_back(offset[s] + c);
 
     // Double sums keep the variance formula stable for thousands of samples.
     // Squares are kept only where a variance is asked for. The buffers are
@@ -118,13 +119,15 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                             std::fill(ps, ps + stride, 0.0);
                             std::fill(pq, pq + var_stride, 0.0);
                         }
+                        const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         for (long long i = first; i < first + count; ++i) {
                             std::fill(vp, vp + stride, 0.f);
-                            Sampler sampler(SampleKey{st.seed, uint32_t(x), uint32_t(y), uint32_t(i)});
+                            Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                             sample(scene, x, y, sampler, vp, local_rays);
-                            bool ok = true;
-                            for (int k = 0; k < stride; ++k) ok &= std::isfinite(vp[k]);
-                            if (!ok) [[unlikely]] {
+                            // x * 0 is 0 for finite x and NaN otherwise: one test for all channels.
+                            float probe = 0.f;
+                            for (int k = 0; k < stride; ++k) probe += vp[k] * 0.f;
+                            if (probe != 0.f) [[unlikely]] {
                                 // A NaN/Inf sample is reported with its pixel and dropped as zero.
                                 ++local_nan;
                                 std::lock_guard<std::mutex> lock(nan_mutex);
@@ -132,8 +135,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                 continue;
                             }
                             for (int k = 0; k < stride; ++k) ps[k] += vp[k];
-                            for (int k = 0; k < stride; ++k)
-                                if (var_index[k] >= 0) pq[var_index[k]] += double(vp[k]) * vp[k];
+                            for (int j = 0; j < var_stride; ++j) {
+                                const double v = vp[squared[size_t(j)]];
+                                pq[j] += v * v;
+                            }
                         }
                     }
                 rays += local_rays;

@@ -23,13 +23,14 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         const float dist = glm::length(d);
         if (!(dist > 0.f)) return;
         const Vec3 wi = y.si.frame.to_local(d / dist);
+        const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
         rec.nee = true;
-        rec.nee_f = bsdf.eval(y.wo, wi, y.si.uv);
+        rec.nee_f = fe.f;
         rec.nee_cos = abs_cos_theta(wi);
         rec.nee_radiance = x.nee.visible ? ls.radiance : Color(0.f);
         rec.nee_jacobian = 1.0;
         rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist));
-        rec.nee_pdf_bsdf = bsdf.pdf(y.wo, wi, y.si.uv);
+        rec.nee_pdf_bsdf = fe.pdf;
         return;
     }
     // The light point is shared in area measure; both ends must be connectable
@@ -46,8 +47,9 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const Vec3 wi_world = Vec3(dy / ly);
     const Vec3 wi = y.si.frame.to_local(wi_world);
     rec.nee_cos = abs_cos_theta(wi);
-    rec.nee_f = bsdf.eval(y.wo, wi, y.si.uv);
-    rec.nee_pdf_bsdf = bsdf.pdf(y.wo, wi, y.si.uv);
+    const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
+    rec.nee_f = fe.f;
+    rec.nee_pdf_bsdf = fe.pdf;
     rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, ly, cos_zy);
     rec.nee_jacobian = std::abs(cos_zx) > 0.0 ? (std::abs(cos_zy) / ly2) / (std::abs(cos_zx) / lx2) : 0.0;
     const Material& light_mat = scene.materials()[scene.mesh().material_ids[ls.prim]];
@@ -115,8 +117,8 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
                 if (!e) return;
                 s.f = e->f, s.pdf = e->pdf, s.delta = true;
             } else {
-                s.f = y.si.material->bsdf->eval(y.wo, s.wi, y.si.uv);
-                s.pdf = y.si.material->bsdf->pdf(y.wo, s.wi, y.si.uv);
+                const BsdfEval fe = y.si.material->bsdf->eval_pdf(y.wo, s.wi, y.si.uv);
+                s.f = fe.f, s.pdf = fe.pdf;
             }
             if (is_black(s.f)) return;
             s.kind = ShiftStep::Kind::Direction;

@@ -22,12 +22,13 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     const Vec3 wi = y.frame.to_local(wi_world);
     const Bsdf& bsdf = *y.material->bsdf;
     ShiftStep s;
-    s.f = bsdf.eval(in.y.wo, wi, y.uv);
-    if (is_black(s.f)) return fail();
+    const BsdfEval fe = bsdf.eval_pdf(in.y.wo, wi, y.uv);
+    if (is_black(fe.f)) return fail();
     if (!in.scene.visible(y.p, y.ng, next.si.p, next.si.ng)) return fail();
     s.kind = ShiftStep::Kind::Reconnect;
     s.wi = wi;
-    s.pdf = bsdf.pdf(in.y.wo, wi, y.uv);
+    s.f = fe.f;
+    s.pdf = fe.pdf;
     s.jacobian = std::abs(cos_y) * lx2 / (std::abs(cos_x) * ly2);
     s.delta = false;
     return s;
@@ -87,8 +88,8 @@ ShiftStep half_vector(const ShiftStepInput& in) {
         s.jacobian = (glm::dot(hy, hy) / (lx * lx)) * (std::abs(glm::dot(Vec3d(x.bs.wi), m)) / dot_y);
         s.wi = Vec3(glm::normalize(wi));
     }
-    s.f = bsdf.eval(wo_y, s.wi, in.y.si.uv);
-    s.pdf = bsdf.pdf(wo_y, s.wi, in.y.si.uv);
+    const BsdfEval fe = bsdf.eval_pdf(wo_y, s.wi, in.y.si.uv);
+    s.f = fe.f, s.pdf = fe.pdf;
     if (is_black(s.f)) return fail();
     s.delta = false;
     return s;

@@ -29,9 +29,12 @@ struct SampleKey {
     uint32_t index = 0;   ///< Sample number within the pixel.
 
     /// The 64-bit stream id of this key.
-    constexpr uint64_t stream() const {
-        return mix64(mix64(mix64(seed) ^ ((uint64_t(py) << 32) | px)) ^ index);
-    }
+    constexpr uint64_t stream() const { return stream_of(pixel_stream(), index); }
+    /// The part of stream() that does not depend on the sample index: a render
+    /// loop computes it once per pixel and calls stream_of() per sample.
+    constexpr uint64_t pixel_stream() const { return mix64(mix64(seed) ^ ((uint64_t(py) << 32) | px)); }
+    /// stream() of the key with pixel_stream() `pixel` and sample number `index`.
+    static constexpr uint64_t stream_of(uint64_t pixel, uint32_t index) { return mix64(pixel ^ index); }
 };
 
 /// A stream of uniform numbers in [0,1) addressed by dimension. Copying a
@@ -41,6 +44,8 @@ public:
     Sampler() = default;
     /// Starts the stream of `key` at dimension 0.
     explicit Sampler(const SampleKey& key) : stream_(key.stream()) {}
+    /// Starts the stream with id `stream` (a SampleKey::stream() value) at dimension 0.
+    explicit Sampler(uint64_t stream) : stream_(stream) {}
 
     /// The number at an absolute dimension; does not advance.
     float at(uint32_t dim) const { return to_unit_float(mix64(stream_ ^ (uint64_t(dim) * 0xd1b54a32d192ed03ull))); }

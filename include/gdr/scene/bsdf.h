@@ -36,6 +36,12 @@ struct BsdfSample {
     bool is_delta() const { return (lobe & kSpecular) != 0; }
 };
 
+/// A BSDF value and density of one pair of directions (see Bsdf::eval_pdf).
+struct BsdfEval {
+    Color f{0.f};     ///< BSDF value of the non-delta lobes (1/sr, no cosine).
+    float pdf = 0.f;  ///< Solid-angle density with which sample() produces wi through them (1/sr).
+};
+
 /// A bidirectional scattering distribution function attached to a material.
 /// Reflective BSDFs are two-sided: a wo below the surface is treated as the
 /// mirror image above it. Dielectrics are oriented: z > 0 is the outside.
@@ -49,6 +55,12 @@ public:
     virtual Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const = 0;
     /// Solid-angle pdf with which sample() produces wi through the non-delta lobes (1/sr).
     virtual float pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const = 0;
+    /// eval() and pdf() of the same pair of directions in one call, for the
+    /// callers that need both (light connections, reconnections): it saves a
+    /// virtual call and lets a BSDF share the work of the two.
+    virtual BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const {
+        return {eval(wo, wi, uv), pdf(wo, wi, uv)};
+    }
     /// For a wi exactly along a delta lobe of wo (mirror or refraction direction):
     /// that lobe's weight f and discrete probability pdf, as sample() would return
     /// them; nullopt if the BSDF has no such lobe. Used by half-vector shifts.

@@ -154,11 +154,13 @@ private:
     static constexpr uint32_t kSmooth = 1u << 31;   // vertex normals differ from the face normal
     static constexpr uint32_t kHasUv = 1u << 30;    // texture coordinates are not all zero
     static constexpr uint32_t kMaterialMask = kHasUv - 1;
-    // An emitting triangle as sample_light needs it (44 bytes).
-    struct Emitter {
-        Vec3 p0, e1, e2;      // corner and edges (the unit normal is recomputed: cheaper than a miss)
-        uint32_t material;    // index into materials_ (emitted radiance, pdf)
+    // An emitting triangle as sample_light needs it, in one cache line.
+    struct alignas(64) Emitter {
+        Vec3 p0, e1, e2;      // corner and edges
+        Vec3 n;               // unit front normal
+        uint32_t material;    // index into materials_ (emitted radiance)
         uint32_t prim;        // triangle id
+        float pdf_a;          // area density of sampling a point on it (1/m^2)
     };
     // One bucket of Walker's alias table: keep emitter i with probability keep, else take alias.
     struct AliasBucket {
