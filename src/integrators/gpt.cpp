@@ -30,7 +30,14 @@ void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
 
 }  // namespace
 
-void compute_base_terms(const Scene& scene, const CameraPath& x, BaseTerms& t) {
+// Plain path-tracing MIS weight of technique density a_t against a_other.
+double pt_mis_weight(MisHeuristic h, double a_t, double a_other) {
+    if (!(a_t > 0.0)) return 0.0;
+    if (h == MisHeuristic::Balance) return a_t / (a_t + a_other);
+    return a_t * a_t / (a_t * a_t + a_other * a_other);
+}
+
+void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic heuristic, BaseTerms& t) {
     t.v.assign(x.size(), BaseTerms::Vertex{});
     Color beta(1.f);
     for (size_t k = 0; k < x.size(); ++k) {
@@ -51,9 +58,10 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, BaseTerms& t) {
             if (T.nee_pdf_light > 0.0) {
                 const Bsdf& bsdf = *X.si.material->bsdf;
                 const Vec3 wi = X.si.frame.to_local(d / dist);
-                T.nee_pdf_bsdf = bsdf.pdf(X.wo, wi, X.si.uv);
+                const BsdfEval fe = bsdf.eval_pdf(X.wo, wi, X.si.uv);
+                T.nee_pdf_bsdf = fe.pdf;
                 if (X.nee.visible) {
-                    T.nee_unit = bsdf.eval(X.wo, wi, X.si.uv) * abs_cos_theta(wi) * ls.radiance * float(1.0 / T.nee_pdf_light);
+                    T.nee_unit = fe.f * abs_cos_theta(wi) * ls.radiance * float(1.0 / T.nee_pdf_light);
                     T.nee = beta * T.nee_unit;
                 }
             }
@@ -61,10 +69,23 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, BaseTerms& t) {
         if (!X.scattered) break;
         beta *= scatter_weight(X);
     }
+    // Suffix sums, back to front. Where y equals x (same vertices, same
+    // densities), gradient_mis_weight(a_t, a_o, a_t, a_o, r) factors into the
+    // path-tracing weight of (a_t, a_o) times a function of r alone, and r and
+    // beta_y / beta_x stay constant: the whole shared suffix is one product.
+    Color next(0.f);  // suffix of vertex k+1 plus its emitter hit, per unit throughput at k+1
+    for (size_t k = x.size(); k-- > 0;) {
+        const PathVertex& X = x.v[k];
+        BaseTerms::Vertex& T = t.v[k];
+        T.suffix = float(pt_mis_weight(heuristic, T.nee_pdf_light, T.nee_pdf_bsdf)) * T.nee_unit;
+        if (X.scattered && k + 1 < x.size()) T.suffix += scatter_weight(X) * next;
+        next = T.suffix;
+        if (k >= 1) next += float(pt_mis_weight(heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
+    }
 }
 
 PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& t, const OffsetPath* y,
-                           const GradientMis& mis) {
+                           const GradientMis& mis, bool closed_form) {
     PairEstimate e;
     Color beta_y(1.f);
     double r = 1.0, r_prev = 1.0;  // offset prefix density / base prefix density (through k-1, k-2)
@@ -76,6 +97,7 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
         const bool has_y = y_alive && k < m;
         // In the shared suffix the offset is the base with its own throughput and prefix density.
         const bool merged = has_y && y->merged(k);
+        const bool first_merged = closed_form && merged && k == y->merged_from;
 
         // Emitter reached by BSDF sampling at x_{k-1}.
         if (k >= 1) {
@@ -102,6 +124,19 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
             }
             if (!is_black(T.emit) || !is_black(cy))
                 add(e, gradient_mis_weight(mis, T.emit_pdf_bsdf, T.emit_pdf_light, b_b, b_l, r_prev), T.emit, cy);
+        }
+
+        if (first_merged) {
+            // Everything from here on (this light sample, later vertices) in closed
+            // form: w = w_pt * g(r), g(r) = (a q)^b / ((a q)^b + ((1-a) r q)^b).
+            const double sa = mis.sample_ratio, sb = 1.0 - mis.sample_ratio;
+            const double g = mis.heuristic == MisHeuristic::Balance ? sa / (sa + sb * r)
+                                                                    : sa * sa / (sa * sa + sb * sb * r * r);
+            if (std::isfinite(g) && g > 0.0) {
+                const Color cx = T.beta * T.suffix, cy = beta_y * T.suffix;
+                add(e, g, cx, cy);
+            }
+            break;
         }
 
         // Light sample at x_k, shared with the offset.
@@ -204,7 +239,7 @@ protected:
         auto put = [&](int slot, const Color& c) {
             out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
         };
-        compute_base_terms(scene, path, terms);
+        compute_base_terms(scene, path, mis_.heuristic, terms);
         // The base alone (plain path-tracing MIS) is needed for the base-only primal and at the border.
         PairEstimate alone;
         bool have_alone = false;

@@ -26,18 +26,26 @@ struct BaseTerms {
         Color nee_unit{0.f};    ///< The same without the throughput: f |cos| Le / pdf at x_k.
         double nee_pdf_light = 0.0;   ///< Light-sampling density of the light direction at x_k.
         double nee_pdf_bsdf = 0.0;    ///< BSDF density of that direction at x_k.
+        /// Path-tracing-MIS-weighted contributions of the light sample at x_k and of
+        /// every later vertex, per unit throughput at x_k (emitter hit at x_k
+        /// excluded). An offset that has merged with the base at x_k contributes
+        /// its own throughput times this, scaled by one MIS factor (see evaluate_pair).
+        Color suffix{0.f};
     };
     std::vector<Vertex> v;  ///< One entry per base vertex.
 };
 
-/// Fills `terms` for base path `x`.
-void compute_base_terms(const Scene& scene, const CameraPath& x, BaseTerms& terms);
+/// Fills `terms` for base path `x`; `heuristic` weighs the suffix sums.
+void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic heuristic, BaseTerms& terms);
 
 /// Evaluates every contribution (light sampling and emitter hits, from the second
 /// vertex on: directly visible emitters are left out) of base path `x` and
 /// offset `y` (nullptr or empty = the shift failed: plain path-tracing MIS).
+/// The suffix an offset shares with the base is summed in closed form from
+/// terms.suffix; `closed_form = false` walks it vertex by vertex instead (the
+/// reference evaluation the closed form is tested against).
 PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& terms, const OffsetPath* y,
-                           const GradientMis& mis);
+                           const GradientMis& mis, bool closed_form = true);
 
 /// Registers "gpt".
 void register_gpt(Registry<Integrator>& r);
