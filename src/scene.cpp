@@ -18,6 +18,11 @@ void embree_error(void* user, RTCError code, const char* msg) {
 
 Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin)
     : materials_(std::move(materials)), camera_(camera) {
+    for (Material& mat : materials_) {
+        if (!mat.bsdf) throw InputError(origin + ": material '" + mat.name + "' has no BSDF");
+        mat.min_roughness = mat.bsdf->min_roughness();
+        mat.pure_delta = mat.bsdf->is_pure_delta();
+    }
     // Validate and compact: non-finite vertices are an error, zero-area triangles are dropped.
     TriangleMesh m;
     const bool has_n = !mesh.normals.empty(), has_uv = !mesh.uvs.empty();

@@ -31,7 +31,7 @@ void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
 }  // namespace
 
 // Plain path-tracing MIS weight of technique density a_t against a_other.
-double pt_mis_weight(MisHeuristic h, double a_t, double a_other) {
+inline double pt_mis_weight(MisHeuristic h, double a_t, double a_other) {
     if (!(a_t > 0.0)) return 0.0;
     if (h == MisHeuristic::Balance) return a_t / (a_t + a_other);
     return a_t * a_t / (a_t * a_t + a_other * a_other);
@@ -119,7 +119,7 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
                 // The offset's densities weigh the base even where the offset itself contributes nothing.
                 b_b = double(S.pdf) * S.jacobian;
                 const OffsetVertex& Yp = y->v[k - 1].y;
-                if (!S.delta && Y.y.si.is_emitter() && scene.has_lights() && !Yp.si.material->bsdf->is_pure_delta())
+                if (!S.delta && Y.y.si.is_emitter() && scene.has_lights() && !Yp.si.material->pure_delta)
                     b_l = light_pdf_w(scene, Yp.si.p, Y.y.si) * S.jacobian;
             }
             if (!is_black(T.emit) || !is_black(cy))
@@ -267,7 +267,7 @@ protected:
         // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
         float* aux = out + 3 * (3 + 2 * kDirs);
         for (const PathVertex& v : path.v) {
-            if (!is_connectable(v.si.material->bsdf->min_roughness(), 0.5f, ShiftConfig{config_.threshold, false}) &&
+            if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
                 &v != &path.v.back())
                 continue;
             const Color a = v.si.material->bsdf->albedo(v.si.uv);

@@ -93,7 +93,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
 
         const Bsdf& bsdf = *si.material->bsdf;
         const Vec3 wo = si.frame.to_local(wo_world);
-        const bool pure_delta = bsdf.is_pure_delta();
+        const bool pure_delta = si.material->pure_delta;
         if (!aux_done && !pure_delta) {
             r.albedo = bsdf.albedo(si.uv);
             r.normal = si.frame.n;

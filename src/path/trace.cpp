@@ -34,7 +34,7 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
         x.u_classify = sampler.next1d();
 
         const Bsdf& bsdf = *x.si.material->bsdf;
-        if (!last && scene.has_lights() && !bsdf.is_pure_delta()) {
+        if (!last && scene.has_lights() && !x.si.material->pure_delta) {
             x.nee.valid = true;
             x.nee.light = scene.sample_light(x.si.p, u_light, u_point);
             x.nee.u_select = u_light;

@@ -139,7 +139,7 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
         OffsetRecord& nr = out.v.emplace_back();  // invalidates `rec`, `y` and `s`
         if (!scene.intersect(ray, nr.y.si) ||
             (reject_if_connectable &&
-             is_connectable(nr.y.si.material->bsdf->min_roughness(), next.u_classify, config))) {
+             is_connectable(nr.y.si.material->min_roughness, next.u_classify, config))) {
             // Escaped (no emitter at infinity) or the inverse would have reconnected: no offset beyond.
             out.v.pop_back();
             out.v[k].step.kind = ShiftStep::Kind::Fail;

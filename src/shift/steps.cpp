@@ -57,7 +57,7 @@ ShiftStep half_vector(const ShiftStepInput& in) {
         s.f = e->f, s.pdf = e->pdf, s.delta = true, s.jacobian = 1.0;
         return s;
     }
-    if (bsdf.is_pure_delta()) return fail();  // a smooth lobe cannot map onto a delta one
+    if (in.y.si.material->pure_delta) return fail();  // a smooth lobe cannot map onto a delta one
 
     if (reflect_lobe) {
         const Vec3d h = glm::normalize(Vec3d(wo_x) + Vec3d(x.bs.wi));

@@ -18,6 +18,11 @@ struct Material {
     std::string name;             ///< Name from the MTL file.
     std::shared_ptr<Bsdf> bsdf;   ///< Scattering (never null).
     Color emission{0.f};          ///< Emitted radiance, W/(m^2 sr), front side (CCW winding) only.
+    /// bsdf->min_roughness() and bsdf->is_pure_delta(), filled in by the Scene:
+    /// shift mappings classify every vertex they visit, and a field read is
+    /// cheaper than a virtual call on that path.
+    float min_roughness = 1.f;
+    bool pure_delta = false;      ///< See min_roughness.
 };
 
 /// A triangle soup ready for the BVH: three corners per triangle.
