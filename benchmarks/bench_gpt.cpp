@@ -1,5 +1,11 @@
 // G-PT cost and gradient noise against PT, measured in one run.
-//  1. Cost of one G-PT sample relative to one PT sample (medians of interleaved runs).
+//  1. Cost of one G-PT sample relative to one PT sample (medians of interleaved
+//     runs), in wall-clock time and in process CPU time (user + system, all
+//     threads): on a shared virtual machine other guests inflate the first.
+//     Whole renders include per-render fixed costs (allocating and zeroing the
+//     accumulators, ~160 MB for G-PT at 512x512, and finalisation); the
+//     marginal cost differences a short and a long render of each method so
+//     that only the cost of the extra samples remains.
 //  2. Variance of the sampled gradients dx against the variance of finite
 //     differences of the PT image, both at equal time (per-sample variances
 //     scaled by the samples each method affords in the same time).
@@ -8,6 +14,8 @@
 #include <cstdio>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
 
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
@@ -19,6 +27,13 @@ namespace {
 double median(std::vector<double> v) {
     std::sort(v.begin(), v.end());
     return v[v.size() / 2];
+}
+
+// CPU seconds (user + system, all threads) this process has used so far.
+double cpu_seconds() {
+    rusage ru{};
+    getrusage(RUSAGE_SELF, &ru);
+    return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
 
 double grey(const Image& img, int x, int y) {
@@ -39,26 +54,45 @@ int main(int argc, char** argv) {
     gp.set("reconstruct", std::string("none"));
     auto gpt = integrator_registry().create("gpt", gp);
     RenderSettings st;
-    std::vector<double> pt_rate, gpt_rate;
-    FrameBuffer pt_fb, gpt_fb;
+    std::vector<double> pt_rate, gpt_rate, cpu_cost, marginal_wall, marginal_cpu;
+    FrameBuffer pt_fb, gpt_fb, scratch;
     for (int r = 0; r < repeats; ++r) {
         st.seed = uint64_t(r);
+        // Short renders for the marginal cost: PT 8 spp, G-PT 3 spp.
+        st.spp = 8;
+        const double s0 = cpu_seconds();
+        const RenderStats pa = pt->render(scene, st, scratch);
+        const double s1 = cpu_seconds();
+        st.spp = 3;
+        const RenderStats ga = gpt->render(scene, st, scratch);
+        const double s2 = cpu_seconds();
         // Enough samples that per-render fixed costs (buffers, finalisation) fade.
         st.spp = 32;
+        const double c0 = cpu_seconds();
         const RenderStats a = pt->render(scene, st, pt_fb);
+        const double c1 = cpu_seconds();
         st.spp = 12;
         const RenderStats b = gpt->render(scene, st, gpt_fb);
+        const double c2 = cpu_seconds();
         pt_rate.push_back(double(a.samples) / a.seconds);
         gpt_rate.push_back(double(b.samples) / b.seconds);
-        std::printf("run %d: pt %.3f M samples/s (%.2f M rays/s), gpt %.3f M samples/s (%.2f M rays/s)\n", r,
-                    pt_rate.back() * 1e-6, double(a.rays) / a.seconds * 1e-6, gpt_rate.back() * 1e-6,
-                    double(b.rays) / b.seconds * 1e-6);
+        cpu_cost.push_back(((c2 - c1) / double(b.samples)) / ((c1 - c0) / double(a.samples)));
+        const double pt_extra = double(a.samples - pa.samples), gpt_extra = double(b.samples - ga.samples);
+        marginal_wall.push_back(((b.seconds - ga.seconds) / gpt_extra) / ((a.seconds - pa.seconds) / pt_extra));
+        marginal_cpu.push_back((((c2 - c1) - (s2 - s1)) / gpt_extra) / (((c1 - c0) - (s1 - s0)) / pt_extra));
+        std::printf("run %d: pt %.3f M samples/s (%.2f M rays/s), gpt %.3f M samples/s (%.2f M rays/s), "
+                    "CPU time per sample gpt/pt %.2f, marginal %.2f wall %.2f CPU\n",
+                    r, pt_rate.back() * 1e-6, double(a.rays) / a.seconds * 1e-6, gpt_rate.back() * 1e-6,
+                    double(b.rays) / b.seconds * 1e-6, cpu_cost.back(), marginal_wall.back(), marginal_cpu.back());
     }
     const double cost = median(pt_rate) / median(gpt_rate);
     std::printf("\n%s (%dx%d)\n", path.c_str(), scene.camera().width(), scene.camera().height());
     std::printf("median PT  : %.3f M samples/s\n", median(pt_rate) * 1e-6);
     std::printf("median G-PT: %.3f M samples/s\n", median(gpt_rate) * 1e-6);
-    std::printf("cost of a G-PT sample / a PT sample: %.2fx (median of %d interleaved runs)\n", cost, repeats);
+    std::printf("cost of a G-PT sample / a PT sample: %.2fx wall-clock, %.2fx CPU time (medians of %d interleaved runs)\n",
+                cost, median(cpu_cost), repeats);
+    std::printf("marginal cost of a sample, per-render fixed costs differenced out: %.2fx wall-clock, %.2fx CPU time\n",
+                median(marginal_wall), median(marginal_cpu));
 
     // Equal time: per-sample variances divided by the samples each affords, PT getting `cost` times more.
     const Image& vpt = pt_fb.get("variance");

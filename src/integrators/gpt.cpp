@@ -180,6 +180,12 @@ const int kDx[kDirs] = {1, -1, 0, 0};
 const int kDy[kDirs] = {0, 0, 1, -1};
 const char* const kGradSlot[kDirs] = {"g+x", "g-x", "g+y", "g-y"};
 const char* const kSplatSlot[kDirs] = {"s+x", "s-x", "s+y", "s-y"};
+// First RGB triple of each slot in a sample's output (slots() order); albedo,
+// normal and depth (7 floats) follow from triple kAux, then the optional
+// base-only primal at float kBaseFloat.
+constexpr int kSelf = 0, kGrad = 1, kSplat = kGrad + kDirs, kDirect = kSplat + kDirs, kAux = kDirect + 1;
+constexpr int kBaseFloat = 3 * kAux + 7;
+
 
 class GradientPathTracer final : public TiledIntegrator {
 public:
@@ -216,13 +222,17 @@ public:
 
 protected:
     std::vector<SlotSpec> slots() const override {
-        std::vector<SlotSpec> s{{"base", 3, true}, {"self", 3, true}};
+        // Order fixes the offsets sample() writes to (kSelf, kGrad, ...).
+        std::vector<SlotSpec> s{{"self", 3, true}};
         for (int d = 0; d < kDirs; ++d) s.push_back({kGradSlot[d], 3, true});
         for (int d = 0; d < kDirs; ++d) s.push_back({kSplatSlot[d], 3, true});
         s.push_back({"direct", 3, false});
         s.push_back({"albedo", 3, false});
         s.push_back({"normal", 3, false});
         s.push_back({"depth", 1, false});
+        // The base-only primal is accumulated only where it is the output: a
+        // slot costs 48 bytes a pixel of accumulators, zeroed every render.
+        if (!primal_both_) s.push_back({"base", 3, true});
         return s;
     }
 
@@ -247,25 +257,28 @@ protected:
             if (!have_alone) alone = evaluate_pair(scene, path, terms, nullptr, mis_), have_alone = true;
             return alone;
         };
-        if (!primal_both_) put(0, base_alone().base);
+        if (!primal_both_) {
+            const Color b = base_alone().base;
+            out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
+        }
         const int W = scene.camera().width(), H = scene.camera().height();
         for (int d = 0; d < kDirs; ++d) {
             const int nx = px + kDx[d], ny = py + kDy[d];
             if (nx < 0 || ny < 0 || nx >= W || ny >= H) {
                 // No neighbour to share with: the base alone estimates its pixel.
-                put(1, 0.25f * base_alone().base);
+                put(kSelf, 0.25f * base_alone().base);
                 continue;
             }
             shift_camera_path(scene, *shift_, config_, path, Vec2(float(kDx[d]), float(kDy[d])), offset);
             rays += offset.rays;
             const PairEstimate e = evaluate_pair(scene, path, terms, &offset, mis_);
-            put(1, 0.25f * e.base);
-            put(2 + d, e.gradient);
-            put(2 + kDirs + d, 0.25f * e.offset);
+            put(kSelf, 0.25f * e.base);
+            put(kGrad + d, e.gradient);
+            put(kSplat + d, 0.25f * e.offset);
         }
-        put(2 + 2 * kDirs, path.v[0].emitted);
+        put(kDirect, path.v[0].emitted);
         // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
-        float* aux = out + 3 * (3 + 2 * kDirs);
+        float* aux = out + 3 * kAux;
         for (const PathVertex& v : path.v) {
             if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
                 &v != &path.v.back())
