@@ -43,6 +43,32 @@ struct HugeDoubles {
 };
 }  // namespace
 
+struct TiledIntegrator::Buffers {
+    std::unique_ptr<HugeDoubles> sum, sum2;
+    // A kept buffer is reused if it holds at least n doubles and not more
+    // than four times that (a small render does not pin a big render's memory).
+    static HugeDoubles& fit(std::unique_ptr<HugeDoubles>& b, size_t n) {
+        const size_t need = std::max<size_t>(n, 1) * sizeof(double);
+        if (!b || b->bytes < need || b->bytes > 4 * need + HugeDoubles::kHuge) {
+            b.reset();  // free first: two large buffers need not coexist
+            b = std::make_unique<HugeDoubles>(n);
+        }
+        return *b;
+    }
+};
+
+TiledIntegrator::TiledIntegrator() : buffers_(std::make_unique<Buffers>()) {}
+TiledIntegrator::~TiledIntegrator() = default;
+
+size_t TiledIntegrator::release_buffers() {
+    size_t bytes = 0;
+    if (buffers_->sum) bytes += buffers_->sum->bytes;
+    if (buffers_->sum2) bytes += buffers_->sum2->bytes;
+    buffers_->sum.reset();
+    buffers_->sum2.reset();
+    return bytes;
+}
+
 const Image& Accumulated::mean_of(const std::string& name) const {
     for (size_t i = 0; i < specs.size(); ++i)
         if (specs[i].name == name) return mean[i];
@@ -81,7 +107,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // first pass: a serial memset of a large image would cost as much as a
     // few samples per pixel, and first touch on the worker places the pages.
     const size_t npix = size_t(W) * H;
-    HugeDoubles sum(npix * stride), sum2(npix * var_stride);
+    HugeDoubles& sum = Buffers::fit(buffers_->sum, npix * stride);
+    HugeDoubles& sum2 = Buffers::fit(buffers_->sum2, npix * var_stride);
 
     struct Tile {
         int x0, y0, x1, y1;

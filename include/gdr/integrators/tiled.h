@@ -5,6 +5,7 @@
 // for any thread count (neighbour splats are gathered in finalize()).
 #pragma once
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -33,10 +34,19 @@ struct Accumulated {
 };
 
 /// Integrator skeleton: subclasses declare slots and implement sample().
+/// The accumulation buffers (per-pixel sums and squared sums, in double) are
+/// kept from one render to the next while their size fits: a frame sequence,
+/// an equal-time series or progressive passes then reuse warm pages instead of
+/// faulting in fresh ones, which on a virtual machine can cost as much as a
+/// few samples per pixel. release_buffers() returns the memory.
 class TiledIntegrator : public Integrator {
 public:
+    TiledIntegrator();
+    ~TiledIntegrator() override;
     RenderStats render(const Scene& scene, const RenderSettings& settings, FrameBuffer& out,
                        const ProgressFn& progress) final;
+    /// Frees the accumulation buffers kept from the last render (bytes freed).
+    size_t release_buffers();
 
 protected:
     /// The slots each sample writes, in order.
@@ -50,6 +60,10 @@ protected:
     virtual void finalize(const Accumulated& acc, FrameBuffer& out) const;
     /// Called once before the first sample (e.g. to precompute per-scene data).
     virtual void prepare(const Scene& scene) {}
+
+private:
+    struct Buffers;
+    std::unique_ptr<Buffers> buffers_;
 };
 
 }  // namespace gdr
