@@ -237,9 +237,17 @@ protected:
     }
 
     void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
-        thread_local CameraPath path;
-        thread_local OffsetPath offset;
-        thread_local BaseTerms terms;
+        // Per-thread scratch kept between samples (no allocation per sample);
+        // one thread_local object, so one initialisation guard per sample.
+        struct Scratch {
+            CameraPath path;
+            OffsetPath offset;
+            BaseTerms terms;
+        };
+        thread_local Scratch scratch;
+        CameraPath& path = scratch.path;
+        OffsetPath& offset = scratch.offset;
+        BaseTerms& terms = scratch.terms;
         sampler.set_dimension(dims::kFilm);
         const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
         trace_camera_path(scene, film, sampler, trace_, path);
