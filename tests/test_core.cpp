@@ -35,6 +35,25 @@ TEST_CASE("sampler is uniform: chi-square over 64 bins", "[core][statistical]") 
     REQUIRE(chi2 < 143.0);
 }
 
+TEST_CASE("sampler pairs (2i, 2i+1) share a hash but are jointly uniform", "[core][statistical]") {
+    // 2-D chi-square on a 16x16 grid over the two halves of one hash, and over
+    // numbers of neighbouring pairs; the 1e-6 quantile of chi2(255) is about 372.
+    for (uint32_t first : {0u, 1u}) {
+        std::vector<int> bins(256, 0);
+        const int n = 256 * 400;
+        for (int i = 0; i < n / 8; ++i) {
+            const Sampler s(SampleKey{3, uint32_t(i % 101), uint32_t(i / 101), uint32_t(i)});
+            for (uint32_t d = first; d < first + 16; d += 2)
+                bins[int(s.at(d) * 16) * 16 + int(s.at(d + 1) * 16)]++;
+        }
+        double chi2 = 0;
+        const double expect = n / 256.0;
+        for (int b : bins) chi2 += sqr(b - expect) / expect;
+        INFO("pairs starting at dimension " << first);
+        REQUIRE(chi2 < 372.0);
+    }
+}
+
 TEST_CASE("params: typed reads, defaults, and unknown keys are errors", "[core]") {
     Params p("--set");
     p.set_from_text("spp=16");

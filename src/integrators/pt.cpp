@@ -61,15 +61,18 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
     bool prev_delta = true;  // camera rays see emitters without MIS
     float prev_pdf_w = 0.f;
     bool aux_done = false;
-    float u_light_next = 0.f;
+    float u_light_next = 0.f, u_lobe_next = 0.f;
     for (int depth = 1;; ++depth) {
         SurfaceInteraction si;
         ++r.rays;
         // Light samples are known before their vertices are: start their cache
         // misses now so they overlap the traversal (this vertex's emitter, the
         // next vertex's alias-table bucket).
+        // The emitter and lobe numbers are one pair (one hash): both are drawn a vertex ahead.
         const float u_light = depth == 1 ? sampler.at(dims::vertex(depth) + dims::kLightSelect) : u_light_next;
+        const float u_lobe = depth == 1 ? sampler.at(dims::vertex(depth) + dims::kBsdfLobe) : u_lobe_next;
         u_light_next = sampler.at(dims::vertex(depth + 1) + dims::kLightSelect);
+        u_lobe_next = sampler.at(dims::vertex(depth + 1) + dims::kBsdfLobe);
         if (opt.nee) {
             scene.prefetch_light(u_light);
             scene.prefetch_light_table(u_light_next);
@@ -102,7 +105,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
         // Numbers are drawn by address, only when needed: the vertex block's
         // layout (path_dims.h) is the same whether or not a strategy runs.
         const uint32_t block = dims::vertex(depth);
-        sampler.set_dimension(block + dims::kRoulette + 1);  // where sequential draws left it before
+        sampler.set_dimension(block + dims::kPerVertex);  // past this vertex's block, as trace_camera_path leaves it
 
         if (opt.nee && !pure_delta && scene.has_lights()) {
             const LightSample ls = scene.sample_light(si.p, u_light,
@@ -126,7 +129,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
             }
         }
 
-        const auto bs = bsdf.sample(wo, si.uv, sampler.at(block + dims::kBsdfLobe),
+        const auto bs = bsdf.sample(wo, si.uv, u_lobe,
                                     Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1)));
         if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) break;
         beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);

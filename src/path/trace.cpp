@@ -25,13 +25,14 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
         x.emitted = x.si.is_emitter() ? x.si.emitted(wo_world) : Color(0.f);
         const bool last = opt.max_depth > 0 && depth >= opt.max_depth;
 
-        sampler.set_dimension(dims::vertex(depth));
-        const float u_light = sampler.next1d();
-        const Vec2 u_point = sampler.next2d();
-        x.u_lobe = sampler.next1d();
-        x.u_dir = sampler.next2d();
-        const float u_rr = sampler.next1d();
-        x.u_classify = sampler.next1d();
+        const uint32_t block = dims::vertex(depth);
+        const float u_light = sampler.at(block + dims::kLightSelect);
+        const Vec2 u_point(sampler.at(block + dims::kLightPoint), sampler.at(block + dims::kLightPoint + 1));
+        x.u_lobe = sampler.at(block + dims::kBsdfLobe);
+        x.u_dir = Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1));
+        const float u_rr = sampler.at(block + dims::kRoulette);
+        x.u_classify = sampler.at(block + dims::kClassify);
+        sampler.set_dimension(block + dims::kPerVertex);
 
         const Bsdf& bsdf = *x.si.material->bsdf;
         if (!last && scene.has_lights() && !x.si.material->pure_delta) {

@@ -20,6 +20,8 @@ constexpr uint64_t mix64(uint64_t z) {
 
 /// Maps the top 24 bits of a 64-bit hash to a float in [0, 1).
 constexpr float to_unit_float(uint64_t h) { return float(h >> 40) * 0x1p-24f; }
+/// Maps bits 8..31 of a 64-bit hash to a float in [0, 1) (the low half's top 24 bits).
+constexpr float to_unit_float_low(uint64_t h) { return float(uint32_t(h) >> 8) * 0x1p-24f; }
 
 /// Identifies one sample stream: seed (render or frame), pixel and sample number.
 struct SampleKey {
@@ -47,8 +49,13 @@ public:
     /// Starts the stream with id `stream` (a SampleKey::stream() value) at dimension 0.
     explicit Sampler(uint64_t stream) : stream_(stream) {}
 
-    /// The number at an absolute dimension; does not advance.
-    float at(uint32_t dim) const { return to_unit_float(mix64(stream_ ^ (uint64_t(dim) * 0xd1b54a32d192ed03ull))); }
+    /// The number at an absolute dimension; does not advance. Dimensions 2i
+    /// and 2i+1 are the two halves of one hash, so a 2-D draw at an even
+    /// dimension costs one hash (and the compiler merges the two calls).
+    float at(uint32_t dim) const {
+        const uint64_t h = mix64(stream_ ^ (uint64_t(dim >> 1) * 0xd1b54a32d192ed03ull));
+        return dim & 1u ? to_unit_float_low(h) : to_unit_float(h);
+    }
     /// Next uniform number in [0,1).
     float next1d() { return at(dim_++); }
     /// Next pair of uniform numbers in [0,1)^2.

@@ -12,8 +12,11 @@ inline constexpr uint32_t kFilm = 0;         ///< 2 numbers: sub-pixel position.
 inline constexpr uint32_t kFirstVertex = 2;  ///< Start of the per-vertex blocks.
 inline constexpr uint32_t kPerVertex = 8;    ///< Numbers per vertex block.
 
-inline constexpr uint32_t kLightSelect = 0;  ///< 1 number: which emitter triangle.
-inline constexpr uint32_t kLightPoint = 1;   ///< 2 numbers: point on it.
+// Numbers drawn together share an even-odd pair (one hash, see Sampler::at):
+// the light point, the emitter choice with the lobe choice (both known a
+// vertex ahead, for prefetching), the BSDF direction, roulette with classification.
+inline constexpr uint32_t kLightPoint = 0;   ///< 2 numbers: point on the emitter.
+inline constexpr uint32_t kLightSelect = 2;  ///< 1 number: which emitter triangle.
 inline constexpr uint32_t kBsdfLobe = 3;     ///< 1 number: BSDF lobe choice.
 inline constexpr uint32_t kBsdfDir = 4;      ///< 2 numbers: BSDF direction.
 inline constexpr uint32_t kRoulette = 6;     ///< 1 number: Russian roulette.
