@@ -98,6 +98,16 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
         // In the shared suffix the offset is the base with its own throughput and prefix density.
         const bool merged = has_y && y->merged(k);
         const bool first_merged = closed_form && merged && k == y->merged_from;
+        if (closed_form && !has_y) {
+            // No offset from here on (none, failed or ended): every later term has
+            // the plain path-tracing weight and no offset share, so the base's
+            // suffix sums give the rest at once.
+            Color c = T.suffix;
+            if (k >= 1) c += float(pt_mis_weight(mis.heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
+            const Color cx = T.beta * c;
+            if (!is_black(cx)) add(e, 1.0, cx, Color(0.f));
+            break;
+        }
 
         // Emitter reached by BSDF sampling at x_{k-1}.
         if (k >= 1) {
