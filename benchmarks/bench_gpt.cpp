@@ -53,33 +53,35 @@ int main(int argc, char** argv) {
     Params gp;
     gp.set("reconstruct", std::string("none"));
     auto gpt = integrator_registry().create("gpt", gp);
-    RenderSettings st;
     std::vector<double> pt_rate, gpt_rate, cpu_cost, marginal_wall, marginal_cpu;
     FrameBuffer pt_fb, gpt_fb, scratch;
-    for (int r = 0; r < repeats; ++r) {
-        st.seed = uint64_t(r);
-        // Short renders for the marginal cost: PT 8 spp, G-PT 3 spp.
-        st.spp = 8;
-        const double s0 = cpu_seconds();
-        const RenderStats pa = pt->render(scene, st, scratch);
-        const double s1 = cpu_seconds();
-        st.spp = 3;
-        const RenderStats ga = gpt->render(scene, st, scratch);
-        const double s2 = cpu_seconds();
-        // Enough samples that per-render fixed costs (buffers, finalisation) fade.
-        st.spp = 32;
+    // A render with its wall-clock figures and the CPU seconds it used.
+    struct Timed {
+        RenderStats stats;
+        double cpu = 0.0;
+    };
+    const auto timed = [&](Integrator& integ, long long spp, uint64_t seed, FrameBuffer& fb) {
+        RenderSettings st;
+        st.spp = spp;
+        st.seed = seed;
         const double c0 = cpu_seconds();
-        const RenderStats a = pt->render(scene, st, pt_fb);
-        const double c1 = cpu_seconds();
-        st.spp = 12;
-        const RenderStats b = gpt->render(scene, st, gpt_fb);
-        const double c2 = cpu_seconds();
+        Timed t;
+        t.stats = integ.render(scene, st, fb);
+        t.cpu = cpu_seconds() - c0;
+        return t;
+    };
+    for (int r = 0; r < repeats; ++r) {
+        // Short renders for the marginal cost (PT 8 spp, G-PT 3 spp), then renders
+        // long enough that per-render fixed costs (buffers, finalisation) fade.
+        const Timed pa = timed(*pt, 8, uint64_t(r), scratch), ga = timed(*gpt, 3, uint64_t(r), scratch);
+        const Timed ta = timed(*pt, 32, uint64_t(r), pt_fb), tb = timed(*gpt, 12, uint64_t(r), gpt_fb);
+        const RenderStats &a = ta.stats, &b = tb.stats;
         pt_rate.push_back(double(a.samples) / a.seconds);
         gpt_rate.push_back(double(b.samples) / b.seconds);
-        cpu_cost.push_back(((c2 - c1) / double(b.samples)) / ((c1 - c0) / double(a.samples)));
-        const double pt_extra = double(a.samples - pa.samples), gpt_extra = double(b.samples - ga.samples);
-        marginal_wall.push_back(((b.seconds - ga.seconds) / gpt_extra) / ((a.seconds - pa.seconds) / pt_extra));
-        marginal_cpu.push_back((((c2 - c1) - (s2 - s1)) / gpt_extra) / (((c1 - c0) - (s1 - s0)) / pt_extra));
+        cpu_cost.push_back((tb.cpu / double(b.samples)) / (ta.cpu / double(a.samples)));
+        const double pt_extra = double(a.samples - pa.stats.samples), gpt_extra = double(b.samples - ga.stats.samples);
+        marginal_wall.push_back(((b.seconds - ga.stats.seconds) / gpt_extra) / ((a.seconds - pa.stats.seconds) / pt_extra));
+        marginal_cpu.push_back(((tb.cpu - ga.cpu) / gpt_extra) / ((ta.cpu - pa.cpu) / pt_extra));
         std::printf("run %d: pt %.3f M samples/s (%.2f M rays/s), gpt %.3f M samples/s (%.2f M rays/s), "
                     "CPU time per sample gpt/pt %.2f, marginal %.2f wall %.2f CPU\n",
                     r, pt_rate.back() * 1e-6, double(a.rays) / a.seconds * 1e-6, gpt_rate.back() * 1e-6,
