@@ -151,10 +151,11 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                             std::fill(vp, vp + stride, 0.f);
                             Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                             sample(scene, x, y, sampler, vp, local_rays);
-                            // x * 0 is 0 for finite x and NaN otherwise: one test for all channels.
-                            float probe = 0.f;
-                            for (int k = 0; k < stride; ++k) probe += vp[k] * 0.f;
-                            if (probe != 0.f) [[unlikely]] {
+                            // x - x is 0 for finite x and NaN otherwise; the tests are
+                            // independent (no chain of additions), so they vectorise.
+                            bool bad = false;
+                            for (int k = 0; k < stride; ++k) bad |= !(vp[k] - vp[k] == 0.f);
+                            if (bad) [[unlikely]] {
                                 // A NaN/Inf sample is reported with its pixel and dropped as zero.
                                 ++local_nan;
                                 std::lock_guard<std::mutex> lock(nan_mutex);
