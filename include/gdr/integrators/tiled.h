@@ -38,7 +38,9 @@ struct Accumulated {
 /// kept from one render to the next while their size fits: a frame sequence,
 /// an equal-time series or progressive passes then reuse warm pages instead of
 /// faulting in fresh ones, which on a virtual machine can cost as much as a
-/// few samples per pixel. release_buffers() returns the memory.
+/// few samples per pixel. release_buffers() returns the memory. Because of
+/// them, one object renders one image at a time: concurrent renders need one
+/// integrator each.
 class TiledIntegrator : public Integrator {
 public:
     TiledIntegrator();
