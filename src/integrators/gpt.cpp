@@ -30,11 +30,10 @@ void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
 
 }  // namespace
 
-// Plain path-tracing MIS weight of technique density a_t against a_other.
+// Plain path-tracing MIS weight of technique density a_t against a_other:
+// the gradient weight without offset densities (the sample ratio cancels).
 inline double pt_mis_weight(MisHeuristic h, double a_t, double a_other) {
-    if (!(a_t > 0.0)) return 0.0;
-    if (h == MisHeuristic::Balance) return a_t / (a_t + a_other);
-    return a_t * a_t / (a_t * a_t + a_other * a_other);
+    return gradient_mis_weight(GradientMis{h, 0.5}, a_t, a_other, 0.0, 0.0, 1.0);
 }
 
 void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic heuristic, BaseTerms& t) {
@@ -138,11 +137,11 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
 
         if (first_merged) {
             // Everything from here on (this light sample, later vertices) in closed
-            // form: w = w_pt * g(r), g(r) = (a q)^b / ((a q)^b + ((1-a) r q)^b).
-            const double sa = mis.sample_ratio, sb = 1.0 - mis.sample_ratio;
-            const double g = mis.heuristic == MisHeuristic::Balance ? sa / (sa + sb * r)
-                                                                    : sa * sa / (sa * sa + sb * sb * r * r);
-            if (std::isfinite(g) && g > 0.0) {
+            // form: w = w_pt * g(r), g(r) = (a q)^b / ((a q)^b + ((1-a) r q)^b),
+            // which is the gradient weight of one technique of density 1 against
+            // an offset of density 1 (and no other technique).
+            const double g = gradient_mis_weight(mis, 1.0, 0.0, 1.0, 0.0, r);
+            if (g > 0.0) {
                 const Color cx = T.beta * T.suffix, cy = beta_y * T.suffix;
                 add(e, g, cx, cy);
             }
