@@ -176,16 +176,46 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     rtcIntersect1(static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
 
-    const uint32_t t = rh.hit.primID;
+    fill_hit(ray, rh.hit.primID, rh.hit.u, rh.hit.v, Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.ray.tfar, si);
+    return true;
+}
+
+void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction si[4], bool hit[4]) const {
+    alignas(16) RTCRayHit4 rh;
+    alignas(16) int valid[4];
+    for (int i = 0; i < 4; ++i) {
+        valid[i] = active[i] ? -1 : 0;
+        if (active[i] && observer_) [[unlikely]]
+            observer_->on_intersect(rays[i]);
+        const Ray& r = rays[i];
+        rh.ray.org_x[i] = r.o.x, rh.ray.org_y[i] = r.o.y, rh.ray.org_z[i] = r.o.z;
+        rh.ray.dir_x[i] = r.d.x, rh.ray.dir_y[i] = r.d.y, rh.ray.dir_z[i] = r.d.z;
+        rh.ray.tnear[i] = r.tmin, rh.ray.tfar[i] = r.tmax;
+        rh.ray.time[i] = 0.f, rh.ray.mask[i] = 0xffffffffu, rh.ray.id[i] = 0, rh.ray.flags[i] = 0;
+        rh.hit.geomID[i] = rh.hit.primID[i] = rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+    }
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersect4(valid, static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
+    for (int i = 0; i < 4; ++i) {
+        hit[i] = active[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
+        if (hit[i])
+            fill_hit(rays[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i],
+                     Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.ray.tfar[i], si[i]);
+    }
+}
+
+void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3& ng, float tfar,
+                     SurfaceInteraction& si) const {
     const uint32_t info = hit_info_[t];
-    const float b1 = rh.hit.u, b2 = rh.hit.v, b0 = 1.f - b1 - b2;
+    const float b0 = 1.f - b1 - b2;
     // p from the ray, not from the corners: that would be a cache miss, and
     // its rounding (~1e-7 of the distance) is far below the 1e-4 relative
     // offset of spawned rays. Embree's Ng is cross(p1 - p0, p2 - p0), our winding.
-    si.t = rh.ray.tfar;
+    si.t = tfar;
     si.p = ray.o + si.t * ray.d;
     si.prim = t;
-    si.ng = glm::normalize(Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z));
+    si.ng = glm::normalize(ng);
     Vec3 ns = si.ng;
     if (info & kSmooth) {
         const Vec3* n = &mesh_.normals[3 * t];
@@ -203,7 +233,6 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
         si.uv = mesh_.uvs.empty() ? Vec2(b1, b2) : Vec2(0.f);
     }
     si.material = &materials_[info & kMaterialMask];
-    return true;
 }
 
 bool Scene::occluded(const Ray& ray) const {

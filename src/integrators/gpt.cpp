@@ -250,12 +250,12 @@ protected:
         // one thread_local object, so one initialisation guard per sample.
         struct Scratch {
             CameraPath path;
-            OffsetPath offset;
+            OffsetPath offsets[kDirs];
             BaseTerms terms;
         };
         thread_local Scratch scratch;
         CameraPath& path = scratch.path;
-        OffsetPath& offset = scratch.offset;
+        OffsetPath* offsets = scratch.offsets;
         BaseTerms& terms = scratch.terms;
         sampler.set_dimension(dims::kFilm);
         const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
@@ -279,16 +279,21 @@ protected:
             out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
         }
         const int W = scene.camera().width(), H = scene.camera().height();
+        static const Vec2 kStep[kDirs] = {{1.f, 0.f}, {-1.f, 0.f}, {0.f, 1.f}, {0.f, -1.f}};
+        bool inside[kDirs];
         for (int d = 0; d < kDirs; ++d) {
             const int nx = px + kDx[d], ny = py + kDy[d];
-            if (nx < 0 || ny < 0 || nx >= W || ny >= H) {
+            inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
+        }
+        shift_camera_paths4(scene, *shift_, config_, path, kStep, inside, offsets);
+        for (int d = 0; d < kDirs; ++d) {
+            if (!inside[d]) {
                 // No neighbour to share with: the base alone estimates its pixel.
                 put(kSelf, 0.25f * base_alone().base);
                 continue;
             }
-            shift_camera_path(scene, *shift_, config_, path, Vec2(float(kDx[d]), float(kDy[d])), offset);
-            rays += offset.rays;
-            const PairEstimate e = evaluate_pair(scene, path, terms, &offset, mis_);
+            rays += offsets[d].rays;
+            const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis_);
             put(kSelf, 0.25f * e.base);
             put(kGrad + d, e.gradient);
             put(kSplat + d, 0.25f * e.offset);

@@ -70,36 +70,75 @@ void set_on_base(OffsetVertex& v, const PathVertex& next, const Vec3& from) {
 }
 
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
-                 const Vec2& pixel_offset, OffsetPath& out);
+                 OffsetPath& out);
+
+void reset(OffsetPath& out) {
+    out.v.clear();
+    out.rays = 0;
+    out.merged_from = size_t(-1);
+}
+
+void finish(const CameraPath& base, OffsetPath& out) {
+    out.length = out.merged_from != size_t(-1) ? base.size() : out.v.size();
+}
+
+// Makes `r0` the offset's first vertex, hit by camera ray `ray`.
+void set_primary(OffsetRecord& r0, const Ray& ray) {
+    r0.y.wo = r0.y.si.frame.to_local(-ray.d);
+    r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
+}
 
 }  // namespace
 
 void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                        const Vec2& pixel_offset, OffsetPath& out) {
-    out.v.clear();
-    out.rays = 0;
-    out.merged_from = size_t(-1);
-    walk_offset(scene, shift, config, base, pixel_offset, out);
-    out.length = out.merged_from != size_t(-1) ? base.size() : out.v.size();
+    reset(out);
+    if (base.size() > 0) {
+        out.v.reserve(base.size());
+        const Ray ray = scene.camera().generate_ray(base.film + pixel_offset);
+        OffsetRecord& r0 = out.v.emplace_back();
+        ++out.rays;
+        if (scene.intersect(ray, r0.y.si)) {
+            set_primary(r0, ray);
+            walk_offset(scene, shift, config, base, out);
+        } else {
+            out.v.pop_back();
+        }
+    }
+    finish(base, out);
+}
+
+void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                         const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]) {
+    Ray rays[4];
+    bool traced[4], hit[4];
+    SurfaceInteraction si[4];
+    for (int i = 0; i < 4; ++i) {
+        reset(out[i]);
+        traced[i] = active[i] && base.size() > 0;
+        if (traced[i]) {
+            rays[i] = scene.camera().generate_ray(base.film + pixel_offsets[i]);
+            out[i].rays = 1;
+        }
+    }
+    scene.intersect4(rays, traced, si, hit);
+    for (int i = 0; i < 4; ++i) {
+        if (hit[i]) {
+            out[i].v.reserve(base.size());
+            OffsetRecord& r0 = out[i].v.emplace_back();
+            r0.y.si = si[i];
+            set_primary(r0, rays[i]);
+            walk_offset(scene, shift, config, base, out[i]);
+        }
+        finish(base, out[i]);
+    }
 }
 
 namespace {
 
+// Continues an offset path whose first vertex out.v[0] is set.
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
-                 const Vec2& pixel_offset, OffsetPath& out) {
-    if (base.size() == 0) return;
-    out.v.reserve(base.size());
-    {
-        const Ray ray = scene.camera().generate_ray(base.film + pixel_offset);
-        OffsetRecord& r0 = out.v.emplace_back();
-        ++out.rays;
-        if (!scene.intersect(ray, r0.y.si)) {
-            out.v.pop_back();
-            return;
-        }
-        r0.y.wo = r0.y.si.frame.to_local(-ray.d);
-        r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
-    }
+                 OffsetPath& out) {
     for (size_t k = 0; k < base.size(); ++k) {
         OffsetRecord& rec = out.v[k];
         shift_light_connection(scene, config, base, k, rec, out.rays);

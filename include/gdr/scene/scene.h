@@ -92,6 +92,12 @@ public:
 
     /// Closest hit along the ray within [tmin, tmax]; false on a miss.
     bool intersect(const Ray& ray, SurfaceInteraction& si) const;
+    /// Closest hits of up to 4 rays traced together as one Embree packet
+    /// (coherent rays, e.g. a path's offsets into neighbouring pixels, share
+    /// traversal work). Ray i is traced if active[i]; hit[i] is false for an
+    /// inactive ray or a miss, and si[i] is then unspecified. Same results as
+    /// intersect() ray by ray.
+    void intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction si[4], bool hit[4]) const;
     /// True if anything blocks the ray within [tmin, tmax].
     bool occluded(const Ray& ray) const;
     /// True if the straight segment between two surface points is unblocked
@@ -184,6 +190,9 @@ private:
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;
     RayObserver* observer_ = nullptr;
+    // Fills a hit record from Embree's hit (primitive, barycentrics, unnormalised Ng, distance).
+    void fill_hit(const Ray& ray, uint32_t prim, float b1, float b2, const Vec3& ng, float t,
+                  SurfaceInteraction& si) const;
 };
 
 /// Offset of a ray origin along the geometric normal that escapes the surface's
