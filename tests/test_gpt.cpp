@@ -272,8 +272,11 @@ TEST_CASE("suffixes in closed form (merged or offset-less) equal the vertex-by-v
 
 TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt][shift]") {
     // Embree's packet and single-ray kernels may round a hit differently in
-    // the last bits, so vertices agree to a relative 1e-4; a hit on another
-    // triangle (only possible at an edge) may occur in at most 0.5% of offsets.
+    // the last bits, so vertices agree to a relative 1e-4, and they may break
+    // ties between coincident triangles differently (the McGuire box holds
+    // duplicates), so hits are compared by point and material, not by
+    // triangle. A hit on another surface (only possible at an edge) may occur
+    // in at most 0.5% of offsets.
     const Vec2 steps[4] = {{1.f, 0.f}, {-1.f, 0.f}, {0.f, 1.f}, {0.f, -1.f}};
     for (const char* variant : {"Original", "Glossy", "Mirror", "Sphere"}) {
         const int res = 20;
@@ -282,7 +285,10 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
             const auto shift = shift_registry().create(shift_name, Params("shift"));
             CameraPath path;
             OffsetPath single, packet[4];
-            int compared = 0, other_triangle = 0;
+            int compared = 0, other_surface = 0;
+            const auto same_surface = [](const SurfaceInteraction& a, const SurfaceInteraction& b) {
+                return a.material == b.material && glm::length(a.p - b.p) <= 1e-4f * (1.f + glm::length(b.p));
+            };
             for (int py = 0; py < res; ++py)
                 for (int px = 0; px < res; ++px) {
                     Sampler sampler(SampleKey{11, uint32_t(px), uint32_t(py), 0});
@@ -305,8 +311,8 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                         shift_camera_path(*scene, *shift, ShiftConfig{}, path, steps[d], single);
                         const OffsetPath& p = packet[d];
                         ++compared;
-                        if (!single.v.empty() && !p.v.empty() && single.v[0].y.si.prim != p.v[0].y.si.prim) {
-                            ++other_triangle;
+                        if (!single.v.empty() && !p.v.empty() && !same_surface(single.v[0].y.si, p.v[0].y.si)) {
+                            ++other_surface;
                             continue;
                         }
                         REQUIRE(p.v.size() == single.v.size());
@@ -315,8 +321,7 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                         REQUIRE(p.rays == single.rays);
                         for (size_t k = 0; k < p.v.size(); ++k) {
                             const OffsetRecord &a = p.v[k], &b = single.v[k];
-                            REQUIRE(a.y.si.prim == b.y.si.prim);
-                            REQUIRE(glm::length(a.y.si.p - b.y.si.p) <= 1e-4f * (1.f + glm::length(b.y.si.p)));
+                            REQUIRE(same_surface(a.y.si, b.y.si));
                             REQUIRE(a.step.kind == b.step.kind);
                             REQUIRE(a.nee == b.nee);
                             REQUIRE(std::abs(a.step.jacobian - b.step.jacobian) <= 1e-3 * std::abs(b.step.jacobian));
@@ -325,7 +330,7 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                 }
             INFO(variant << " " << shift_name);
             CHECK(compared > 1000);
-            CHECK(other_triangle * 200 <= compared);
+            CHECK(other_surface * 200 <= compared);
         }
     }
 }
