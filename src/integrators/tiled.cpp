@@ -1,6 +1,7 @@
 #include "gdr/integrators/tiled.h"
 
 #include <algorithm>
+#include <bit>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -94,12 +95,21 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         offset.push_back(stride), stride += s.channels;
         var_offset.push_back(s.variance ? var_stride : -1), var_stride += s.variance ? s.channels : 0;
     }
-    // The sample values whose squares are summed, in squared-sum order (the
-    // sample loop walks this list instead of testing every channel).
-    std::vector<int> squared;
+    // The sample values whose squares are summed, as runs of consecutive
+    // channels (from, to, length) in squared-sum order: slots with a variance
+    // usually come first, so one run covers them and its loop vectorises.
+    struct Run {
+        int from, to, n;
+    };
+    std::vector<Run> squared;
     for (size_t s = 0; s < specs.size(); ++s)
-        if (specs[s].variance)
-            for (int c = 0; c < specs[s].channels; ++c) squared.push_back(offset[s] + c);
+        if (specs[s].variance) {
+            if (!squared.empty() && squared.back().from + squared.back().n == offset[s] &&
+                squared.back().to + squared.back().n == var_offset[s])
+                squared.back().n += specs[s].channels;
+            else
+                squared.push_back({offset[s], var_offset[s], specs[s].channels});
+        }
 
     // Double sums keep the variance formula stable for thousands of samples.
     // Squares are kept only where a variance is asked for. The buffers are
@@ -151,10 +161,11 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                             std::fill(vp, vp + stride, 0.f);
                             Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                             sample(scene, x, y, sampler, vp, local_rays);
-                            // x - x is 0 for finite x and NaN otherwise; the tests are
-                            // independent (no chain of additions), so they vectorise.
-                            bool bad = false;
-                            for (int k = 0; k < stride; ++k) bad |= !(vp[k] - vp[k] == 0.f);
+                            // Non-finite floats have all exponent bits set. Integer
+                            // tests, unlike float compares with NaN, vectorise.
+                            uint32_t bad = 0;
+                            for (int k = 0; k < stride; ++k)
+                                bad |= uint32_t((std::bit_cast<uint32_t>(vp[k]) & 0x7f800000u) == 0x7f800000u);
                             if (bad) [[unlikely]] {
                                 // A NaN/Inf sample is reported with its pixel and dropped as zero.
                                 ++local_nan;
@@ -163,9 +174,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                 continue;
                             }
                             for (int k = 0; k < stride; ++k) ps[k] += vp[k];
-                            for (int j = 0; j < var_stride; ++j) {
-                                const double v = vp[squared[size_t(j)]];
-                                pq[j] += v * v;
+                            for (const Run& run : squared) {
+                                const float* a = vp + run.from;
+                                double* q = pq + run.to;
+                                for (int j = 0; j < run.n; ++j) q[j] += double(a[j]) * double(a[j]);
                             }
                         }
                     }
