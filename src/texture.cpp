@@ -26,6 +26,7 @@ public:
     explicit ConstantTexture(const Color& c) : c_(c) {}
     Color eval(const Vec2&) const override { return c_; }
     Color mean() const override { return c_; }
+    bool is_constant() const override { return true; }
 
 private:
     Color c_;

@@ -8,7 +8,8 @@ namespace {
 /// f = kd / pi on the side of wo; cosine-weighted sampling makes f cos / pdf = kd.
 class Lambertian final : public Bsdf {
 public:
-    explicit Lambertian(std::shared_ptr<Texture> kd) : kd_(std::move(kd)) {}
+    explicit Lambertian(std::shared_ptr<Texture> kd)
+        : kd_(std::move(kd)), constant_(kd_->is_constant()), f_const_(kd_->mean() * kInvPi) {}
 
     std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
         if (wo.z == 0.f) return std::nullopt;
@@ -18,7 +19,7 @@ public:
         if (wo.z < 0.f) wi.z = -wi.z;  // two-sided: scatter back to wo's side
         BsdfSample s;
         s.wi = wi;
-        s.f = kd_->eval(uv) * kInvPi;
+        s.f = f(uv);
         s.pdf = pdf;
         s.eta = 1.f;
         s.lobe = kReflection | kDiffuse;
@@ -28,7 +29,7 @@ public:
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return Color(0.f);
-        return kd_->eval(uv) * kInvPi;
+        return f(uv);
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
@@ -38,7 +39,7 @@ public:
 
     BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return {};
-        return {kd_->eval(uv) * kInvPi, abs_cos_theta(wi) * kInvPi};
+        return {f(uv), abs_cos_theta(wi) * kInvPi};
     }
 
     uint32_t flags() const override { return kReflection | kDiffuse; }
@@ -46,7 +47,13 @@ public:
     float min_roughness() const override { return 1.f; }
 
 private:
+    // kd / pi; kept for untextured materials, which are most of them, to save
+    // a virtual call per evaluation.
+    Color f(const Vec2& uv) const { return constant_ ? f_const_ : kd_->eval(uv) * kInvPi; }
+
     std::shared_ptr<Texture> kd_;
+    bool constant_;
+    Color f_const_;
 };
 
 }  // namespace

@@ -18,6 +18,9 @@ public:
     virtual Color eval(const Vec2& uv) const = 0;
     /// Mean value over the texture (used for lobe-selection weights and albedo estimates).
     virtual Color mean() const = 0;
+    /// True if eval() returns mean() everywhere: a BSDF may then keep the
+    /// value and skip the per-hit lookup.
+    virtual bool is_constant() const { return false; }
 };
 
 /// A texture that returns one colour everywhere.
