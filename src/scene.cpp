@@ -180,7 +180,7 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     return true;
 }
 
-void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction si[4], bool hit[4]) const {
+void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const {
     alignas(16) RTCRayHit4 rh;
     alignas(16) int valid[4];
     for (int i = 0; i < 4; ++i) {
@@ -204,7 +204,7 @@ void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteracti
         hit[i] = active[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (hit[i])
             fill_hit(rays[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i],
-                     Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.ray.tfar[i], si[i]);
+                     Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.ray.tfar[i], *si[i]);
     }
 }
 

@@ -112,23 +112,24 @@ void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConf
                          const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]) {
     Ray rays[4];
     bool traced[4], hit[4];
-    SurfaceInteraction si[4];
+    SurfaceInteraction* si[4] = {};
     for (int i = 0; i < 4; ++i) {
         reset(out[i]);
         traced[i] = active[i] && base.size() > 0;
         if (traced[i]) {
             rays[i] = scene.camera().generate_ray(base.film + pixel_offsets[i]);
             out[i].rays = 1;
+            out[i].v.reserve(base.size());
+            si[i] = &out[i].v.emplace_back().y.si;  // the hit is written in place
         }
     }
     scene.intersect4(rays, traced, si, hit);
     for (int i = 0; i < 4; ++i) {
         if (hit[i]) {
-            out[i].v.reserve(base.size());
-            OffsetRecord& r0 = out[i].v.emplace_back();
-            r0.y.si = si[i];
-            set_primary(r0, rays[i]);
+            set_primary(out[i].v[0], rays[i]);
             walk_offset(scene, shift, config, base, out[i]);
+        } else if (traced[i]) {
+            out[i].v.pop_back();
         }
         finish(base, out[i]);
     }

@@ -96,8 +96,9 @@ public:
     /// (coherent rays, e.g. a path's offsets into neighbouring pixels, share
     /// traversal work). Ray i is traced if active[i]; hit[i] is false for an
     /// inactive ray or a miss, and si[i] is then unspecified. Same results as
-    /// intersect() ray by ray.
-    void intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction si[4], bool hit[4]) const;
+    /// intersect() ray by ray. Hit records are written through si[i] (records
+    /// of the caller's own, e.g. path vertices, so that none is copied).
+    void intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const;
     /// True if anything blocks the ray within [tmin, tmax].
     bool occluded(const Ray& ray) const;
     /// True if the straight segment between two surface points is unblocked
