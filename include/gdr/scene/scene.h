@@ -94,10 +94,11 @@ public:
     bool intersect(const Ray& ray, SurfaceInteraction& si) const;
     /// Closest hits of up to 4 rays traced together as one Embree packet
     /// (coherent rays, e.g. a path's offsets into neighbouring pixels, share
-    /// traversal work). Ray i is traced if active[i]; hit[i] is false for an
-    /// inactive ray or a miss, and si[i] is then unspecified. Same results as
-    /// intersect() ray by ray. Hit records are written through si[i] (records
-    /// of the caller's own, e.g. path vertices, so that none is copied).
+    /// traversal work). Ray i is traced if active[i]; its hit record is
+    /// written through si[i] (a record of the caller's, e.g. a path vertex, so
+    /// that none is copied). hit[i] is false for an inactive ray or a miss, and
+    /// *si[i] is then unspecified. The hits are intersect()'s up to rounding
+    /// in the last bits and the choice between coincident triangles.
     void intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const;
     /// True if anything blocks the ray within [tmin, tmax].
     bool occluded(const Ray& ray) const;

@@ -46,7 +46,8 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
 /// shift_camera_path() to the pixels displaced by pixel_offsets[i] for each i
 /// with active[i] (out[i] is left empty otherwise), tracing the offsets'
 /// primary rays as one packet: neighbouring pixels' rays are coherent, so
-/// they share BVH traversal. Gives the same offset paths as four calls.
+/// they share BVH traversal. Gives the offset paths of four calls, up to
+/// Scene::intersect4's rounding and choice between coincident triangles.
 void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                          const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]);
 
