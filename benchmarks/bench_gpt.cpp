@@ -29,6 +29,16 @@ double median(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
+// "q1-q3" of the runs (nearest-rank quartiles): how far a median of a few
+// runs on a shared machine can be trusted.
+std::string quartiles(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const size_t n = v.size();
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%.2f-%.2f", v[(n - 1) / 4], v[n - 1 - (n - 1) / 4]);
+    return buf;
+}
+
 // CPU seconds (user + system, all threads) this process has used so far.
 double cpu_seconds() {
     rusage ru{};
@@ -95,6 +105,8 @@ int main(int argc, char** argv) {
                 cost, median(cpu_cost), repeats);
     std::printf("marginal cost of a sample, per-render fixed costs differenced out: %.2fx wall-clock, %.2fx CPU time\n",
                 median(marginal_wall), median(marginal_cpu));
+    std::printf("quartiles of the runs: whole renders %s CPU time, marginal %s CPU time\n",
+                quartiles(cpu_cost).c_str(), quartiles(marginal_cpu).c_str());
 
     // Equal time: per-sample variances divided by the samples each affords, PT getting `cost` times more.
     const Image& vpt = pt_fb.get("variance");
