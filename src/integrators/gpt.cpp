@@ -279,13 +279,14 @@ protected:
             out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
         }
         const int W = scene.camera().width(), H = scene.camera().height();
-        static const Vec2 kStep[kDirs] = {{1.f, 0.f}, {-1.f, 0.f}, {0.f, 1.f}, {0.f, -1.f}};
+        Vec2 step[kDirs];
         bool inside[kDirs];
         for (int d = 0; d < kDirs; ++d) {
             const int nx = px + kDx[d], ny = py + kDy[d];
+            step[d] = Vec2(float(kDx[d]), float(kDy[d]));
             inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
         }
-        shift_camera_paths4(scene, *shift_, config_, path, kStep, inside, offsets);
+        shift_camera_paths4(scene, *shift_, config_, path, step, inside, offsets);
         for (int d = 0; d < kDirs; ++d) {
             if (!inside[d]) {
                 // No neighbour to share with: the base alone estimates its pixel.
