@@ -65,6 +65,9 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     if (!dev) throw RuntimeFailure("cannot create an Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
     rtc_device_ = dev;
     rtcSetDeviceErrorFunction(dev, embree_error, &last_error);
+    // An Embree built without ray packets (EMBREE_RAY_PACKETS off) rejects
+    // rtcIntersect4; intersect4() then traces its rays one by one.
+    packets4_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
     RTCScene scene = rtcNewScene(dev);
     rtc_scene_ = scene;
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
@@ -181,6 +184,10 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
 }
 
 void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const {
+    if (!packets4_) {
+        for (int i = 0; i < 4; ++i) hit[i] = active[i] && intersect(rays[i], *si[i]);
+        return;
+    }
     alignas(16) RTCRayHit4 rh;
     alignas(16) int valid[4];
     for (int i = 0; i < 4; ++i) {

@@ -192,6 +192,7 @@ private:
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;
     RayObserver* observer_ = nullptr;
+    bool packets4_ = false;  // Embree traces 4-ray packets natively
     // Fills a hit record from Embree's hit (primitive, barycentrics, unnormalised Ng, distance).
     void fill_hit(const Ray& ray, uint32_t prim, float b1, float b2, const Vec3& ng, float t,
                   SurfaceInteraction& si) const;
