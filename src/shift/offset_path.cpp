@@ -76,16 +76,34 @@ void reset(OffsetPath& out) {
     out.v.clear();
     out.rays = 0;
     out.merged_from = size_t(-1);
+    out.length = 0;
 }
 
-void finish(const CameraPath& base, OffsetPath& out) {
+// For a reset `out`: makes the record of the offset's first vertex and the
+// camera ray that reaches it, and returns where that ray's hit goes
+// (nullptr if the base is empty and there is nothing to shift).
+SurfaceInteraction* start_offset(const Scene& scene, const CameraPath& base, const Vec2& pixel_offset,
+                                 OffsetPath& out, Ray& ray) {
+    if (base.size() == 0) return nullptr;
+    out.v.reserve(base.size());
+    ray = scene.camera().generate_ray(base.film + pixel_offset);
+    out.rays = 1;
+    return &out.v.emplace_back().y.si;
+}
+
+// After start_offset's camera ray was traced: walks on from its hit, or
+// drops the first record on a miss.
+void complete_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                     const Ray& ray, bool hit, OffsetPath& out) {
+    if (hit) {
+        OffsetRecord& r0 = out.v[0];
+        r0.y.wo = r0.y.si.frame.to_local(-ray.d);
+        r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
+        walk_offset(scene, shift, config, base, out);
+    } else {
+        out.v.clear();
+    }
     out.length = out.merged_from != size_t(-1) ? base.size() : out.v.size();
-}
-
-// Makes `r0` the offset's first vertex, hit by camera ray `ray`.
-void set_primary(OffsetRecord& r0, const Ray& ray) {
-    r0.y.wo = r0.y.si.frame.to_local(-ray.d);
-    r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
 }
 
 }  // namespace
@@ -93,46 +111,24 @@ void set_primary(OffsetRecord& r0, const Ray& ray) {
 void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                        const Vec2& pixel_offset, OffsetPath& out) {
     reset(out);
-    if (base.size() > 0) {
-        out.v.reserve(base.size());
-        const Ray ray = scene.camera().generate_ray(base.film + pixel_offset);
-        OffsetRecord& r0 = out.v.emplace_back();
-        ++out.rays;
-        if (scene.intersect(ray, r0.y.si)) {
-            set_primary(r0, ray);
-            walk_offset(scene, shift, config, base, out);
-        } else {
-            out.v.pop_back();
-        }
-    }
-    finish(base, out);
+    Ray ray;
+    if (SurfaceInteraction* si = start_offset(scene, base, pixel_offset, out, ray))
+        complete_offset(scene, shift, config, base, ray, scene.intersect(ray, *si), out);
 }
 
 void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                          const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]) {
     Ray rays[4];
+    SurfaceInteraction* si[4];
     bool traced[4], hit[4];
-    SurfaceInteraction* si[4] = {};
     for (int i = 0; i < 4; ++i) {
         reset(out[i]);
-        traced[i] = active[i] && base.size() > 0;
-        if (traced[i]) {
-            rays[i] = scene.camera().generate_ray(base.film + pixel_offsets[i]);
-            out[i].rays = 1;
-            out[i].v.reserve(base.size());
-            si[i] = &out[i].v.emplace_back().y.si;  // the hit is written in place
-        }
+        si[i] = active[i] ? start_offset(scene, base, pixel_offsets[i], out[i], rays[i]) : nullptr;
+        traced[i] = si[i] != nullptr;
     }
-    scene.intersect4(rays, traced, si, hit);
-    for (int i = 0; i < 4; ++i) {
-        if (hit[i]) {
-            set_primary(out[i].v[0], rays[i]);
-            walk_offset(scene, shift, config, base, out[i]);
-        } else if (traced[i]) {
-            out[i].v.pop_back();
-        }
-        finish(base, out[i]);
-    }
+    scene.intersect4(rays, traced, si, hit);  // the hits are written into the first records
+    for (int i = 0; i < 4; ++i)
+        if (traced[i]) complete_offset(scene, shift, config, base, rays[i], hit[i], out[i]);
 }
 
 namespace {
