@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -32,7 +33,12 @@ inline float max_component(const Color& c) { return std::max(c.r, std::max(c.g, 
 inline bool is_finite(const Color& c) { return std::isfinite(c.r) && std::isfinite(c.g) && std::isfinite(c.b); }
 
 /// True when all channels are exactly zero.
-inline bool is_black(const Color& c) { return c.r == 0.f && c.g == 0.f && c.b == 0.f; }
+inline bool is_black(const Color& c) {
+    // Same as c.r == 0 && c.g == 0 && c.b == 0 (either zero counts, NaN does
+    // not), as integer tests: the float compares cost a branch per channel.
+    const uint32_t bits = std::bit_cast<uint32_t>(c.r) | std::bit_cast<uint32_t>(c.g) | std::bit_cast<uint32_t>(c.b);
+    return (bits << 1) == 0u;
+}
 
 /// Square of x.
 template <typename T>
