@@ -36,8 +36,12 @@ struct BsdfSample {
     bool is_delta() const { return (lobe & kSpecular) != 0; }
 };
 
+// Aligned to 32 bytes so that it is returned through memory: returned in a
+// pair of SSE registers, GCC assembles {f.b, pdf} from two 4-byte stack
+// stores and reloads them as one 8-byte load, which stalls store forwarding
+// on every (virtual, so not inlined) eval_pdf call.
 /// A BSDF value and density of one pair of directions (see Bsdf::eval_pdf).
-struct BsdfEval {
+struct alignas(32) BsdfEval {
     Color f{0.f};     ///< BSDF value of the non-delta lobes (1/sr, no cosine).
     float pdf = 0.f;  ///< Solid-angle density with which sample() produces wi through them (1/sr).
 };
