@@ -1,5 +1,7 @@
 #include "gdr/shift/offset_path.h"
 
+#include <new>
+
 #include "gdr/shift/half_vector.h"
 #include "gdr/shift/reconnection.h"
 #include "gdr/shift/replay.h"
@@ -161,7 +163,10 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
             out.merged_from = k + 1;  // same vertex, same outgoing direction: y is x from here on
             return;
         }
-        s = shift.step(ShiftStepInput{scene, config, base, k, y});
+        // Built in place (a prvalue initialising the record's step): assigned
+        // from a returned temporary, it was copied 16 bytes at a time right
+        // after the step wrote it field by field, which stalls store forwarding.
+        ::new (static_cast<void*>(&s)) ShiftStep(shift.step(ShiftStepInput{scene, config, base, k, y}));
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
