@@ -88,7 +88,7 @@ SurfaceInteraction* start_offset(const Scene& scene, const CameraPath& base, con
                                  OffsetPath& out, Ray& ray) {
     if (base.size() == 0) return nullptr;
     out.v.reserve(base.size());
-    ray = scene.camera().generate_ray(base.film + pixel_offset);
+    ::new (static_cast<void*>(&ray)) Ray(scene.camera().generate_ray(base.film + pixel_offset));  // in place, as the step below
     out.rays = 1;
     return &out.v.emplace_back().y.si;
 }
