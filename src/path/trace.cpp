@@ -1,7 +1,6 @@
 #include "gdr/path/trace.h"
 
-#include <new>
-
+#include "gdr/core/in_place.h"
 #include "gdr/integrators/common.h"
 #include "gdr/integrators/path_dims.h"
 
@@ -39,10 +38,7 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
         const Bsdf& bsdf = *x.si.material->bsdf;
         if (!last && scene.has_lights() && !x.si.material->pure_delta) {
             x.nee.valid = true;
-            // Built in place: assigned from a returned temporary, it was copied
-            // 16 bytes at a time just after sample_light wrote it field by
-            // field, which stalls store forwarding.
-            ::new (static_cast<void*>(&x.nee.light)) LightSample(scene.sample_light(x.si.p, u_light, u_point));
+            assign_in_place(x.nee.light, [&] { return scene.sample_light(x.si.p, u_light, u_point); });
             x.nee.u_select = u_light;
             x.nee.u_point = u_point;
             if (!is_black(x.nee.light.radiance)) {

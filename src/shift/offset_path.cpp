@@ -1,7 +1,6 @@
 #include "gdr/shift/offset_path.h"
 
-#include <new>
-
+#include "gdr/core/in_place.h"
 #include "gdr/shift/half_vector.h"
 #include "gdr/shift/reconnection.h"
 #include "gdr/shift/replay.h"
@@ -88,7 +87,7 @@ SurfaceInteraction* start_offset(const Scene& scene, const CameraPath& base, con
                                  OffsetPath& out, Ray& ray) {
     if (base.size() == 0) return nullptr;
     out.v.reserve(base.size());
-    ::new (static_cast<void*>(&ray)) Ray(scene.camera().generate_ray(base.film + pixel_offset));  // in place, as the step below
+    assign_in_place(ray, [&] { return scene.camera().generate_ray(base.film + pixel_offset); });
     out.rays = 1;
     return &out.v.emplace_back().y.si;
 }
@@ -163,10 +162,7 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
             out.merged_from = k + 1;  // same vertex, same outgoing direction: y is x from here on
             return;
         }
-        // Built in place (a prvalue initialising the record's step): assigned
-        // from a returned temporary, it was copied 16 bytes at a time right
-        // after the step wrote it field by field, which stalls store forwarding.
-        ::new (static_cast<void*>(&s)) ShiftStep(shift.step(ShiftStepInput{scene, config, base, k, y}));
+        assign_in_place(s, [&] { return shift.step(ShiftStepInput{scene, config, base, k, y}); });
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
