@@ -15,10 +15,9 @@
 #include <string>
 #include <vector>
 
-#include <sys/resource.h>
-
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
+#include "run_stats.h"
 
 using namespace gdr;
 
@@ -29,21 +28,12 @@ double median(std::vector<double> v) {
     return v[v.size() / 2];
 }
 
-// "q1-q3" of the runs (nearest-rank quartiles): how far a median of a few
-// runs on a shared machine can be trusted.
-std::string quartiles(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
+// "q1-q3" of the runs, as printed.
+std::string quartile_range(const std::vector<double>& v) {
+    const auto [q1, q3] = bench::quartiles(v);
     char buf[64];
-    std::snprintf(buf, sizeof buf, "%.2f-%.2f", v[(n - 1) / 4], v[n - 1 - (n - 1) / 4]);
+    std::snprintf(buf, sizeof buf, "%.2f-%.2f", q1, q3);
     return buf;
-}
-
-// CPU seconds (user + system, all threads) this process has used so far.
-double cpu_seconds() {
-    rusage ru{};
-    getrusage(RUSAGE_SELF, &ru);
-    return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
 }
 
 double grey(const Image& img, int x, int y) {
@@ -74,10 +64,10 @@ int main(int argc, char** argv) {
         RenderSettings st;
         st.spp = spp;
         st.seed = seed;
-        const double c0 = cpu_seconds();
+        const double c0 = bench::cpu_seconds();
         Timed t;
         t.stats = integ.render(scene, st, fb);
-        t.cpu = cpu_seconds() - c0;
+        t.cpu = bench::cpu_seconds() - c0;
         return t;
     };
     for (int r = 0; r < repeats; ++r) {
@@ -106,7 +96,7 @@ int main(int argc, char** argv) {
     std::printf("marginal cost of a sample, per-render fixed costs differenced out: %.2fx wall-clock, %.2fx CPU time\n",
                 median(marginal_wall), median(marginal_cpu));
     std::printf("quartiles of the runs: whole renders %s CPU time, marginal %s CPU time\n",
-                quartiles(cpu_cost).c_str(), quartiles(marginal_cpu).c_str());
+                quartile_range(cpu_cost).c_str(), quartile_range(marginal_cpu).c_str());
 
     // Equal time: per-sample variances divided by the samples each affords, PT getting `cost` times more.
     const Image& vpt = pt_fb.get("variance");

@@ -23,8 +23,6 @@
 #include <string>
 #include <vector>
 
-#include <sys/resource.h>
-
 #include <embree3/rtcore.h>
 #include <fmt/core.h>
 #include <tbb/blocked_range.h>
@@ -34,17 +32,11 @@
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
+#include "run_stats.h"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// CPU seconds (user + system, all threads) this process has used so far.
-double cpu_seconds() {
-    rusage ru{};
-    getrusage(RUSAGE_SELF, &ru);
-    return double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
-}
 
 struct RecordedRay {
     gdr::Vec3 o;
@@ -75,12 +67,10 @@ double median(std::vector<double> v) {
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-// "q1-q3" of the runs (nearest-rank quartiles): how far a median of a few
-// runs on a shared machine can be trusted.
-std::string quartiles(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const size_t n = v.size();
-    return fmt::format("{:.3f}-{:.3f}", v[(n - 1) / 4], v[n - 1 - (n - 1) / 4]);
+// "q1-q3" of the runs, as printed.
+std::string quartile_range(const std::vector<double>& v) {
+    const auto [q1, q3] = gdr::bench::quartiles(v);
+    return fmt::format("{:.3f}-{:.3f}", q1, q3);
 }
 
 // Casts `rays` `passes` times with bare Embree calls; returns seconds.
@@ -157,12 +147,12 @@ bool bench_scene(const std::string& path, long long spp, int repeats, int thread
         st.spp = spp;
         st.threads = threads;
         st.seed = uint64_t(i);
-        const double c0 = cpu_seconds();
+        const double c0 = gdr::bench::cpu_seconds();
         const gdr::RenderStats s = pt->render(scene, st, fb, {});
-        const double c1 = cpu_seconds();
+        const double c1 = gdr::bench::cpu_seconds();
         uint64_t hits = 0;
         const double tb = replay(static_cast<RTCScene>(scene.embree_scene()), rec.rays, spp, arena, hits);
-        const double c2 = cpu_seconds();
+        const double c2 = gdr::bench::cpu_seconds();
         const double rays_b = double(rec.rays.size()) * double(spp);
         const double rps = double(s.rays) / s.seconds, rps_b = rays_b / tb;
         const double rays_per_sample = double(s.rays) / double(s.samples);
@@ -182,8 +172,8 @@ bool bench_scene(const std::string& path, long long spp, int repeats, int thread
     fmt::print("  median: PT {:.3f} M samples/s, {:.2f} M rays/s | bare Embree {:.3f} M samples/s, {:.2f} M rays/s | "
                "PT/bound {:.3f} wall-clock, {:.3f} CPU time ({}; quartiles of the runs: {} wall-clock, {} CPU time)\n\n",
                median(pt_sps) * 1e-6, median(pt_rps) * 1e-6, median(bound_sps) * 1e-6, median(bound_rps) * 1e-6,
-               median(ratio), r, r >= 0.5 ? "meets the 0.5 target" : "BELOW the 0.5 target", quartiles(ratio),
-               quartiles(cpu_ratio));
+               median(ratio), r, r >= 0.5 ? "meets the 0.5 target" : "BELOW the 0.5 target", quartile_range(ratio),
+               quartile_range(cpu_ratio));
     return r >= 0.5;
 }
 

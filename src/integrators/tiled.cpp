@@ -1,8 +1,8 @@
 #include "gdr/integrators/tiled.h"
 
 #include <algorithm>
-#include <bit>
 #include <atomic>
+#include <bit>
 #include <chrono>
 #include <cstdlib>
 #include <memory>
