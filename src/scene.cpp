@@ -3,6 +3,8 @@
 #include <algorithm>
 
 #include <embree3/rtcore.h>
+#include <xmmintrin.h>
+#include <emmintrin.h>
 
 #include "gdr/core/error.h"
 
@@ -66,8 +68,9 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     rtc_device_ = dev;
     rtcSetDeviceErrorFunction(dev, embree_error, &last_error);
     // An Embree built without ray packets (EMBREE_RAY_PACKETS off) rejects
-    // rtcIntersect4; intersect4() then traces its rays one by one.
+    // rtcIntersect4/8; intersect4() then traces its rays one by one.
     packets4_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
+    packets8_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) != 0;
     RTCScene scene = rtcNewScene(dev);
     rtc_scene_ = scene;
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
@@ -183,36 +186,71 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     return true;
 }
 
-void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const {
-    if (!packets4_) {
-        for (int i = 0; i < 4; ++i) hit[i] = active[i] && intersect(rays[i], *si[i]);
-        return;
-    }
-    alignas(16) RTCRayHit4 rh;
-    alignas(16) int valid[4];
-    for (int i = 0; i < 4; ++i) {
-        valid[i] = active[i] ? -1 : 0;
-        if (active[i] && observer_) [[unlikely]]
-            observer_->on_intersect(rays[i]);
-        const Ray& r = rays[i];
-        rh.ray.org_x[i] = r.o.x, rh.ray.org_y[i] = r.o.y, rh.ray.org_z[i] = r.o.z;
-        rh.ray.dir_x[i] = r.d.x, rh.ray.dir_y[i] = r.d.y, rh.ray.dir_z[i] = r.d.z;
-        rh.ray.tnear[i] = r.tmin, rh.ray.tfar[i] = r.tmax;
-        rh.ray.time[i] = 0.f, rh.ray.mask[i] = 0xffffffffu, rh.ray.id[i] = 0, rh.ray.flags[i] = 0;
-        rh.hit.geomID[i] = rh.hit.primID[i] = rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+// One Embree packet of N rays (RTCRayHitN of width N) with the coherent hint,
+// written into the callers' hit records.
+template <int N, class RayHitN, class IntersectN>
+void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInteraction* const* si, bool* hit,
+                             IntersectN intersect_n) const {
+    static_assert(sizeof(Ray) == 8 * sizeof(float), "Ray is loaded as two rows of four floats");
+    alignas(32) RayHitN rh;
+    alignas(32) int valid[N];
+    if (observer_) [[unlikely]]
+        for (int i = 0; i < N; ++i)
+            if (active[i]) observer_->on_intersect(rays[i]);
+    // Rays are (o.x o.y o.z d.x | d.y d.z tmin tmax): two 4x4 transposes per
+    // 4 lanes give Embree's structure-of-arrays packet. Lane by lane, this
+    // setup cost more than Embree's own traversal of the packet.
+    const float* src = &rays[0].o.x;
+    for (int b = 0; b < N; b += 4) {
+        __m128 a0 = _mm_loadu_ps(src + 8 * (b + 0)), a1 = _mm_loadu_ps(src + 8 * (b + 1));
+        __m128 a2 = _mm_loadu_ps(src + 8 * (b + 2)), a3 = _mm_loadu_ps(src + 8 * (b + 3));
+        _MM_TRANSPOSE4_PS(a0, a1, a2, a3);
+        _mm_store_ps(rh.ray.org_x + b, a0), _mm_store_ps(rh.ray.org_y + b, a1);
+        _mm_store_ps(rh.ray.org_z + b, a2), _mm_store_ps(rh.ray.dir_x + b, a3);
+        __m128 c0 = _mm_loadu_ps(src + 8 * (b + 0) + 4), c1 = _mm_loadu_ps(src + 8 * (b + 1) + 4);
+        __m128 c2 = _mm_loadu_ps(src + 8 * (b + 2) + 4), c3 = _mm_loadu_ps(src + 8 * (b + 3) + 4);
+        _MM_TRANSPOSE4_PS(c0, c1, c2, c3);
+        _mm_store_ps(rh.ray.dir_y + b, c0), _mm_store_ps(rh.ray.dir_z + b, c1);
+        _mm_store_ps(rh.ray.tnear + b, c2), _mm_store_ps(rh.ray.tfar + b, c3);
+        const __m128i zero = _mm_setzero_si128(), ones = _mm_set1_epi32(-1);
+        _mm_store_ps(rh.ray.time + b, _mm_setzero_ps());
+        _mm_store_si128(reinterpret_cast<__m128i*>(rh.ray.mask + b), ones);
+        _mm_store_si128(reinterpret_cast<__m128i*>(rh.ray.id + b), zero);
+        _mm_store_si128(reinterpret_cast<__m128i*>(rh.ray.flags + b), zero);
+        _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.geomID + b), ones);  // RTC_INVALID_GEOMETRY_ID
+        _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.primID + b), ones);
+        _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.instID[0] + b), ones);
+        for (int i = b; i < b + 4; ++i) valid[i] = active[i] ? -1 : 0;
     }
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     // Without the coherent hint Embree's packet kernel cost G-PT's four offset
     // primaries about as much as four single rays; with it about a third less.
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    rtcIntersect4(valid, static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
-    for (int i = 0; i < 4; ++i) {
+    intersect_n(valid, static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
+    for (int i = 0; i < N; ++i) {
         hit[i] = active[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (hit[i])
             fill_hit(rays[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i],
                      Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.ray.tfar[i], *si[i]);
     }
+}
+
+void Scene::intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const {
+    if (!packets4_) {
+        for (int i = 0; i < 4; ++i) hit[i] = active[i] && intersect(rays[i], *si[i]);
+        return;
+    }
+    intersect_packet<4, RTCRayHit4>(rays, active, si, hit, rtcIntersect4);
+}
+
+void Scene::intersect8(const Ray rays[8], const bool active[8], SurfaceInteraction* const si[8], bool hit[8]) const {
+    if (!packets8_) {
+        intersect4(rays, active, si, hit);
+        intersect4(rays + 4, active + 4, si + 4, hit + 4);
+        return;
+    }
+    intersect_packet<8, RTCRayHit8>(rays, active, si, hit, rtcIntersect8);
 }
 
 void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3& ng, float tfar,

@@ -276,23 +276,42 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
     // ties between coincident triangles differently (the McGuire box holds
     // duplicates), so hits are compared by point and material, not by
     // triangle. A hit on another surface (only possible at an edge) may occur
-    // in at most 0.5% of offsets.
+    // in at most 0.5% of offsets. Both packet forms are checked: the offsets'
+    // 4-ray packet after the base was traced, and the 8-ray packet that also
+    // holds the base's camera ray.
     const Vec2 steps[4] = {{1.f, 0.f}, {-1.f, 0.f}, {0.f, 1.f}, {0.f, -1.f}};
+    const auto same_surface = [](const SurfaceInteraction& a, const SurfaceInteraction& b) {
+        return a.material == b.material && glm::length(a.p - b.p) <= 1e-4f * (1.f + glm::length(b.p));
+    };
+    // False if the first hits lie on different surfaces; otherwise requires equal offsets.
+    const auto agree = [&](const OffsetPath& p, const OffsetPath& single) {
+        if (!single.v.empty() && !p.v.empty() && !same_surface(single.v[0].y.si, p.v[0].y.si)) return false;
+        REQUIRE(p.v.size() == single.v.size());
+        REQUIRE(p.size() == single.size());
+        REQUIRE(p.merged_from == single.merged_from);
+        REQUIRE(p.rays == single.rays);
+        for (size_t k = 0; k < p.v.size(); ++k) {
+            const OffsetRecord &a = p.v[k], &b = single.v[k];
+            REQUIRE(same_surface(a.y.si, b.y.si));
+            REQUIRE(a.step.kind == b.step.kind);
+            REQUIRE(a.nee == b.nee);
+            REQUIRE(std::abs(a.step.jacobian - b.step.jacobian) <= 1e-3 * std::abs(b.step.jacobian));
+        }
+        return true;
+    };
     for (const char* variant : {"Original", "Glossy", "Mirror", "Sphere"}) {
         const int res = 20;
         const auto scene = small_box(variant, res);
         for (const char* shift_name : kShifts) {
             const auto shift = shift_registry().create(shift_name, Params("shift"));
-            CameraPath path;
-            OffsetPath single, packet[4];
-            int compared = 0, other_surface = 0;
-            const auto same_surface = [](const SurfaceInteraction& a, const SurfaceInteraction& b) {
-                return a.material == b.material && glm::length(a.p - b.p) <= 1e-4f * (1.f + glm::length(b.p));
-            };
+            CameraPath path, path8;
+            OffsetPath single, packet[4], packet8[4];
+            int compared = 0, other_surface = 0, bases = 0, other_base = 0;
             for (int py = 0; py < res; ++py)
                 for (int px = 0; px < res; ++px) {
                     Sampler sampler(SampleKey{11, uint32_t(px), uint32_t(py), 0});
                     const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
+                    Sampler sampler8 = sampler;
                     trace_camera_path(*scene, film, sampler, TraceOptions{}, path);
                     // Border pixels leave some offsets inactive, as in the integrator.
                     bool active[4];
@@ -301,36 +320,46 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                         active[d] = nx >= 0 && ny >= 0 && nx < res && ny < res;
                     }
                     shift_camera_paths4(*scene, *shift, ShiftConfig{}, path, steps, active, packet);
+                    trace_and_shift_camera_paths4(*scene, *shift, ShiftConfig{}, film, sampler8, TraceOptions{}, path8,
+                                                  steps, active, packet8);
+                    // The base traced in the 8-ray packet is the base traced alone.
+                    ++bases;
+                    const bool same_base = path.size() == path8.size() &&
+                                           (path.size() == 0 || same_surface(path.v[0].si, path8.v[0].si));
+                    if (!same_base) ++other_base;
+                    if (same_base) {
+                        REQUIRE(path8.rays == path.rays);
+                        for (size_t k = 0; k < path.size(); ++k) {
+                            REQUIRE(same_surface(path8.v[k].si, path.v[k].si));
+                            REQUIRE(path8.v[k].scattered == path.v[k].scattered);
+                        }
+                    }
                     for (int d = 0; d < 4; ++d) {
                         INFO(variant << " " << shift_name << " pixel " << px << "," << py << " offset " << d);
                         if (!active[d]) {
                             CHECK(packet[d].v.empty());
                             CHECK(packet[d].size() == 0);
+                            CHECK(packet8[d].v.empty());
+                            CHECK(packet8[d].size() == 0);
                             continue;
                         }
                         shift_camera_path(*scene, *shift, ShiftConfig{}, path, steps[d], single);
-                        const OffsetPath& p = packet[d];
                         ++compared;
-                        if (!single.v.empty() && !p.v.empty() && !same_surface(single.v[0].y.si, p.v[0].y.si)) {
-                            ++other_surface;
-                            continue;
-                        }
-                        REQUIRE(p.v.size() == single.v.size());
-                        REQUIRE(p.size() == single.size());
-                        REQUIRE(p.merged_from == single.merged_from);
-                        REQUIRE(p.rays == single.rays);
-                        for (size_t k = 0; k < p.v.size(); ++k) {
-                            const OffsetRecord &a = p.v[k], &b = single.v[k];
-                            REQUIRE(same_surface(a.y.si, b.y.si));
-                            REQUIRE(a.step.kind == b.step.kind);
-                            REQUIRE(a.nee == b.nee);
-                            REQUIRE(std::abs(a.step.jacobian - b.step.jacobian) <= 1e-3 * std::abs(b.step.jacobian));
+                        if (!agree(packet[d], single)) ++other_surface;
+                        if (same_base && path.size() == 0) {
+                            // Nothing to shift; the offset's camera ray was cast in the packet all the same.
+                            CHECK(packet8[d].size() == 0);
+                            CHECK(packet8[d].rays == 1);
+                        } else if (same_base) {
+                            ++compared;
+                            if (!agree(packet8[d], single)) ++other_surface;
                         }
                     }
                 }
             INFO(variant << " " << shift_name);
-            CHECK(compared > 1000);
+            CHECK(compared > 2000);
             CHECK(other_surface * 200 <= compared);
+            CHECK(other_base * 200 <= bases);
         }
     }
 }

@@ -259,8 +259,18 @@ protected:
         BaseTerms& terms = scratch.terms;
         sampler.set_dimension(dims::kFilm);
         const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
-        trace_camera_path(scene, film, sampler, trace_, path);
+        const int W = scene.camera().width(), H = scene.camera().height();
+        Vec2 step[kDirs];
+        bool inside[kDirs];
+        for (int d = 0; d < kDirs; ++d) {
+            const int nx = px + kDx[d], ny = py + kDy[d];
+            step[d] = Vec2(float(kDx[d]), float(kDy[d]));
+            inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
+        }
+        // The base's camera ray and its offsets' are traced as one packet.
+        trace_and_shift_camera_paths4(scene, *shift_, config_, film, sampler, trace_, path, step, inside, offsets);
         rays += path.rays;
+        for (int d = 0; d < kDirs; ++d) rays += inside[d] ? offsets[d].rays : 0;
         if (path.size() == 0) return;
 
         auto put = [&](int slot, const Color& c) {
@@ -278,22 +288,12 @@ protected:
             const Color b = base_alone().base;
             out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
         }
-        const int W = scene.camera().width(), H = scene.camera().height();
-        Vec2 step[kDirs];
-        bool inside[kDirs];
-        for (int d = 0; d < kDirs; ++d) {
-            const int nx = px + kDx[d], ny = py + kDy[d];
-            step[d] = Vec2(float(kDx[d]), float(kDy[d]));
-            inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
-        }
-        shift_camera_paths4(scene, *shift_, config_, path, step, inside, offsets);
         for (int d = 0; d < kDirs; ++d) {
             if (!inside[d]) {
                 // No neighbour to share with: the base alone estimates its pixel.
                 put(kSelf, 0.25f * base_alone().base);
                 continue;
             }
-            rays += offsets[d].rays;
             const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis_);
             put(kSelf, 0.25f * e.base);
             put(kGrad + d, e.gradient);

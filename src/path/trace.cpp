@@ -6,21 +6,24 @@
 
 namespace gdr {
 
-void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, const TraceOptions& opt,
-                       CameraPath& path) {
+SurfaceInteraction* begin_camera_path(const Scene& scene, const Vec2& film, CameraPath& path, Ray& ray) {
     path.film = film;
     path.v.clear();
-    path.rays = 0;
-    Ray ray = scene.camera().generate_ray(film);
+    path.rays = 1;
+    assign_in_place(ray, [&] { return scene.camera().generate_ray(film); });
+    // Built in place: a vertex is a few hundred bytes and this is the hot loop.
+    return &path.v.emplace_back().si;
+}
+
+void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptions& opt, CameraPath& path, Ray ray,
+                          bool hit) {
     Color beta(1.f);
     for (int depth = 1;; ++depth) {
-        // Built in place: a vertex is a few hundred bytes and this is the hot loop.
-        PathVertex& x = path.v.emplace_back();
-        ++path.rays;
-        if (!scene.intersect(ray, x.si)) {
+        if (!hit) {
             path.v.pop_back();
             return;
         }
+        PathVertex& x = path.v.back();
         const Vec3 wo_world = -ray.d;
         x.wo = x.si.frame.to_local(wo_world);
         x.emitted = x.si.is_emitter() ? x.si.emitted(wo_world) : Color(0.f);
@@ -62,7 +65,16 @@ void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, c
         }
         if (!x.scattered) return;
         ray = spawn_ray(x.si, x.si.frame.to_world(x.bs.wi));
+        ++path.rays;
+        hit = scene.intersect(ray, path.v.emplace_back().si);  // invalidates `x`
     }
+}
+
+void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, const TraceOptions& opt,
+                       CameraPath& path) {
+    Ray ray;
+    SurfaceInteraction* first = begin_camera_path(scene, film, path, ray);
+    continue_camera_path(scene, sampler, opt, path, ray, scene.intersect(ray, *first));
 }
 
 }  // namespace gdr

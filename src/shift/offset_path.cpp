@@ -1,6 +1,7 @@
 #include "gdr/shift/offset_path.h"
 
 #include "gdr/core/in_place.h"
+#include "gdr/path/trace.h"
 #include "gdr/shift/half_vector.h"
 #include "gdr/shift/reconnection.h"
 #include "gdr/shift/replay.h"
@@ -80,14 +81,12 @@ void reset(OffsetPath& out) {
     out.length = 0;
 }
 
-// For a reset `out`: makes the record of the offset's first vertex and the
-// camera ray that reaches it, and returns where that ray's hit goes
-// (nullptr if the base is empty and there is nothing to shift).
-SurfaceInteraction* start_offset(const Scene& scene, const CameraPath& base, const Vec2& pixel_offset,
-                                 OffsetPath& out, Ray& ray) {
-    if (base.size() == 0) return nullptr;
-    out.v.reserve(base.size());
-    assign_in_place(ray, [&] { return scene.camera().generate_ray(base.film + pixel_offset); });
+// For a reset `out`: makes the record of the offset's first vertex and sets
+// `ray` to the camera ray through film + pixel_offset that reaches it;
+// returns where that ray's hit goes.
+SurfaceInteraction* start_offset(const Scene& scene, const Vec2& film, const Vec2& pixel_offset, OffsetPath& out,
+                                 Ray& ray) {
+    assign_in_place(ray, [&] { return scene.camera().generate_ray(film + pixel_offset); });
     out.rays = 1;
     return &out.v.emplace_back().y.si;
 }
@@ -96,7 +95,8 @@ SurfaceInteraction* start_offset(const Scene& scene, const CameraPath& base, con
 // drops the first record on a miss.
 void complete_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                      const Ray& ray, bool hit, OffsetPath& out) {
-    if (hit) {
+    if (hit && base.size() > 0) {
+        out.v.reserve(base.size());
         OffsetRecord& r0 = out.v[0];
         r0.y.wo = r0.y.si.frame.to_local(-ray.d);
         r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
@@ -112,9 +112,10 @@ void complete_offset(const Scene& scene, const Shift& shift, const ShiftConfig& 
 void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                        const Vec2& pixel_offset, OffsetPath& out) {
     reset(out);
+    if (base.size() == 0) return;
     Ray ray;
-    if (SurfaceInteraction* si = start_offset(scene, base, pixel_offset, out, ray))
-        complete_offset(scene, shift, config, base, ray, scene.intersect(ray, *si), out);
+    SurfaceInteraction* si = start_offset(scene, base.film, pixel_offset, out, ray);
+    complete_offset(scene, shift, config, base, ray, scene.intersect(ray, *si), out);
 }
 
 void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
@@ -124,12 +125,32 @@ void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConf
     bool traced[4], hit[4];
     for (int i = 0; i < 4; ++i) {
         reset(out[i]);
-        si[i] = active[i] ? start_offset(scene, base, pixel_offsets[i], out[i], rays[i]) : nullptr;
-        traced[i] = si[i] != nullptr;
+        traced[i] = active[i] && base.size() > 0;
+        si[i] = traced[i] ? start_offset(scene, base.film, pixel_offsets[i], out[i], rays[i]) : nullptr;
     }
     scene.intersect4(rays, traced, si, hit);  // the hits are written into the first records
     for (int i = 0; i < 4; ++i)
         if (traced[i]) complete_offset(scene, shift, config, base, rays[i], hit[i], out[i]);
+}
+
+void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config,
+                                   const Vec2& film, Sampler& sampler, const TraceOptions& opt, CameraPath& base,
+                                   const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]) {
+    // Lane 0 is the base's camera ray, lanes 1-4 the offsets', 5-7 unused.
+    Ray rays[8];
+    SurfaceInteraction* si[8] = {};
+    bool traced[8] = {}, hit[8];
+    si[0] = begin_camera_path(scene, film, base, rays[0]);
+    traced[0] = true;
+    for (int i = 0; i < 4; ++i) {
+        reset(out[i]);
+        traced[1 + i] = active[i];
+        if (active[i]) si[1 + i] = start_offset(scene, film, pixel_offsets[i], out[i], rays[1 + i]);
+    }
+    scene.intersect8(rays, traced, si, hit);
+    continue_camera_path(scene, sampler, opt, base, rays[0], hit[0]);
+    for (int i = 0; i < 4; ++i)
+        if (traced[1 + i]) complete_offset(scene, shift, config, base, rays[1 + i], hit[1 + i], out[i]);
 }
 
 namespace {

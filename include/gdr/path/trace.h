@@ -18,6 +18,15 @@ struct TraceOptions {
 void trace_camera_path(const Scene& scene, const Vec2& film, Sampler& sampler, const TraceOptions& opt,
                        CameraPath& path);
 
+/// trace_camera_path() in two halves, for a caller that traces the camera ray
+/// itself (e.g. in one packet with its offsets'). This half resets `path`,
+/// sets `ray` to the camera ray through `film` and returns the record its hit
+/// must be written to.
+SurfaceInteraction* begin_camera_path(const Scene& scene, const Vec2& film, CameraPath& path, Ray& ray);
+/// The second half: `hit` says whether `ray` hit (its record then holds the hit).
+void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptions& opt, CameraPath& path, Ray ray,
+                          bool hit);
+
 /// Throughput f*|cos|/(pdf*survival) of the scattering at vertex k (unitless RGB).
 inline Color scatter_weight(const PathVertex& x) {
     return x.bs.f * (abs_cos_theta(x.bs.wi) / (x.bs.pdf * x.rr_survival));

@@ -100,6 +100,10 @@ public:
     /// *si[i] is then unspecified. The hits are intersect()'s up to rounding
     /// in the last bits and the choice between coincident triangles.
     void intersect4(const Ray rays[4], const bool active[4], SurfaceInteraction* const si[4], bool hit[4]) const;
+    /// intersect4() for up to 8 rays in one packet (e.g. a base path's camera
+    /// ray with its four offsets'); as two 4-ray packets where Embree has no
+    /// native 8-wide kernel.
+    void intersect8(const Ray rays[8], const bool active[8], SurfaceInteraction* const si[8], bool hit[8]) const;
     /// True if anything blocks the ray within [tmin, tmax].
     bool occluded(const Ray& ray) const;
     /// True if the straight segment between two surface points is unblocked
@@ -193,6 +197,10 @@ private:
     void* rtc_scene_ = nullptr;
     RayObserver* observer_ = nullptr;
     bool packets4_ = false;  // Embree traces 4-ray packets natively
+    bool packets8_ = false;  // ... and 8-ray packets
+    template <int N, class RayHitN, class IntersectN>
+    void intersect_packet(const Ray* rays, const bool* active, SurfaceInteraction* const* si, bool* hit,
+                          IntersectN intersect_n) const;
     // Fills a hit record from Embree's hit (primitive, barycentrics, unnormalised Ng, distance).
     void fill_hit(const Ray& ray, uint32_t prim, float b1, float b2, const Vec3& ng, float t,
                   SurfaceInteraction& si) const;

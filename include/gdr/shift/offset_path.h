@@ -5,6 +5,7 @@
 
 #include <vector>
 
+#include "gdr/path/trace.h"
 #include "gdr/shift/shift.h"
 
 namespace gdr {
@@ -50,5 +51,14 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
 /// Scene::intersect4's rounding and choice between coincident triangles.
 void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                          const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]);
+
+/// trace_camera_path() of the base through `film`, then shift_camera_paths4()
+/// of it, with the base's camera ray traced in the same packet as its
+/// offsets' (Scene::intersect8). Gives what those two calls give, up to that
+/// packet's rounding. An offset whose base is empty (its camera ray missed) is
+/// left with no vertices, but its camera ray was cast and counted in `rays`.
+void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config,
+                                   const Vec2& film, Sampler& sampler, const TraceOptions& opt, CameraPath& base,
+                                   const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]);
 
 }  // namespace gdr
