@@ -22,6 +22,9 @@ Camera::Camera(const CameraDesc& d) : desc_(d) {
     const float aspect = float(d.width) / float(d.height);
     if (d.fov_axis == 'x') tan_half_x_ = t, tan_half_y_ = t / aspect;
     else tan_half_y_ = t, tan_half_x_ = t * aspect;
+    corner_ = forward_ - tan_half_x_ * right_ + tan_half_y_ * up_;
+    per_pixel_x_ = (2.f * tan_half_x_ / float(d.width)) * right_;
+    per_pixel_y_ = (-2.f * tan_half_y_ / float(d.height)) * up_;
 }
 
 bool Camera::project(const Vec3& p, Vec2& film) const {

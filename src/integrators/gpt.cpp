@@ -21,7 +21,9 @@ double light_pdf_w(const Scene& scene, const Vec3& from, const SurfaceInteractio
     return pdf_a_to_w(pa, dist, glm::dot(Vec3d(at.ng), d / dist));
 }
 
-void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
+// Inlined: it sits in evaluate_pair's inner loop, and as a call it kept its
+// operands in memory.
+[[gnu::always_inline]] inline void add(PairEstimate& e, double w, const Color& cx, const Color& cy) {
     const float wf = float(w);
     e.base += wf * cx;
     e.offset += wf * cy;
@@ -59,13 +61,16 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
                 const Vec3 wi = X.si.frame.to_local(d / dist);
                 const BsdfEval fe = bsdf.eval_pdf(X.wo, wi, X.si.uv);
                 T.nee_pdf_bsdf = fe.pdf;
+                T.inv_nee_pdf_light = 1.0 / T.nee_pdf_light;
                 if (X.nee.visible) {
-                    T.nee_unit = fe.f * abs_cos_theta(wi) * ls.radiance * float(1.0 / T.nee_pdf_light);
+                    T.nee_unit = fe.f * abs_cos_theta(wi) * ls.radiance * float(T.inv_nee_pdf_light);
                     T.nee = beta * T.nee_unit;
                 }
             }
         }
         if (!X.scattered) break;
+        T.inv_bs_pdf = 1.0 / double(X.bs.pdf);
+        T.inv_scatter_pdf = T.inv_bs_pdf / double(X.rr_survival);
         beta *= scatter_weight(X);
     }
     // Suffix sums, back to front. Where y equals x (same vertices, same
@@ -159,7 +164,7 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
                 const OffsetRecord& R = y->v[k];
                 b_l = R.nee_pdf_light_w * R.nee_jacobian;
                 b_b = double(R.nee_pdf_bsdf) * R.nee_jacobian;
-                cy = beta_y * R.nee_f * R.nee_cos * R.nee_radiance * float(R.nee_jacobian / T.nee_pdf_light);
+                cy = beta_y * R.nee_f * R.nee_cos * R.nee_radiance * float(R.nee_jacobian * T.inv_nee_pdf_light);
             }
             if (!is_black(T.nee) || !is_black(cy))
                 add(e, gradient_mis_weight(mis, T.nee_pdf_light, T.nee_pdf_bsdf, b_l, b_b, r), T.nee, cy);
@@ -174,8 +179,9 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
             if (S.kind == ShiftStep::Kind::Fail || k + 1 >= m) {
                 y_alive = false;
             } else {
-                beta_y *= S.f * float(abs_cos_theta(S.wi) * S.jacobian / (double(X.bs.pdf) * X.rr_survival));
-                r *= double(S.pdf) * S.jacobian / double(X.bs.pdf);
+                // Products with the base's reciprocals: four offsets share them.
+                beta_y *= S.f * float(abs_cos_theta(S.wi) * S.jacobian * T.inv_scatter_pdf);
+                r *= double(S.pdf) * S.jacobian * T.inv_bs_pdf;
             }
         }
     }

@@ -32,9 +32,8 @@ public:
 
     /// The primary ray through film point `film` (pixel units).
     Ray generate_ray(const Vec2& film) const {
-        const float sx = (2.f * film.x / float(desc_.width) - 1.f) * tan_half_x_;
-        const float sy = (1.f - 2.f * film.y / float(desc_.height)) * tan_half_y_;
-        return Ray{desc_.position, glm::normalize(forward_ + sx * right_ + sy * up_)};
+        // The image plane at distance 1 is affine in the film point: no division per ray.
+        return Ray{desc_.position, glm::normalize(corner_ + film.x * per_pixel_x_ + film.y * per_pixel_y_)};
     }
     /// Film point (pixel units) where the direction from the eye through p lands; false if behind the camera.
     bool project(const Vec3& p, Vec2& film) const;
@@ -50,6 +49,8 @@ private:
     CameraDesc desc_;
     Vec3 forward_, right_, up_;
     float tan_half_x_ = 1.f, tan_half_y_ = 1.f;
+    // Image-plane point (distance 1) of film (0,0), and its change per pixel in x and y.
+    Vec3 corner_, per_pixel_x_, per_pixel_y_;
 };
 
 }  // namespace gdr
