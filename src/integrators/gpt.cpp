@@ -53,12 +53,10 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
         }
         if (X.nee.valid) {
             const LightSample& ls = X.nee.light;
-            const Vec3 d = ls.p - X.si.p;
-            const float dist = glm::length(d);
-            T.nee_pdf_light = dist > 0.f ? pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist)) : 0.0;
+            T.nee_pdf_light = X.nee.pdf_w;
             if (T.nee_pdf_light > 0.0) {
                 const Bsdf& bsdf = *X.si.material->bsdf;
-                const Vec3 wi = X.si.frame.to_local(d / dist);
+                const Vec3& wi = X.nee.wi;
                 const BsdfEval fe = bsdf.eval_pdf(X.wo, wi, X.si.uv);
                 T.nee_pdf_bsdf = fe.pdf;
                 T.inv_nee_pdf_light = 1.0 / T.nee_pdf_light;

@@ -20,18 +20,17 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const OffsetVertex& y = rec.y;
     const Bsdf& bsdf = *y.si.material->bsdf;
     if (y.on_base) {
-        // Same vertex, same light segment: only the BSDF's incoming direction differs.
-        const Vec3 d = ls.p - x.si.p;
-        const float dist = glm::length(d);
-        if (!(dist > 0.f)) return;
-        const Vec3 wi = y.si.frame.to_local(d / dist);
+        // Same vertex, same light segment (measured once for the base): only
+        // the BSDF's incoming direction differs.
+        if (!(x.nee.dist > 0.f)) return;
+        const Vec3& wi = x.nee.wi;
         const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
         rec.nee = true;
         rec.nee_f = fe.f;
         rec.nee_cos = abs_cos_theta(wi);
         rec.nee_radiance = x.nee.visible ? ls.radiance : Color(0.f);
         rec.nee_jacobian = 1.0;
-        rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, d / dist));
+        rec.nee_pdf_light_w = x.nee.pdf_w;
         rec.nee_pdf_bsdf = fe.pdf;
         return;
     }

@@ -37,6 +37,26 @@ struct LightConnection {
     bool visible = false;     ///< Segment vertex -> light point unblocked (only tested when radiance > 0).
     float u_select = 0.f;     ///< Random number that picked the emitter triangle.
     Vec2 u_point{0.f};        ///< Random numbers that picked the point on it.
+    // The segment to the light point as seen from the vertex, measured once
+    // (measure()) and read by the base's terms and by every offset that
+    // shares the vertex.
+    float dist = 0.f;         ///< Distance from the vertex to the light point (scene units); 0 if they coincide.
+    Vec3 wi{0.f};             ///< Unit direction to the light point in the vertex's shading frame (if dist > 0).
+    double pdf_w = 0.0;       ///< Light-sampling density of that direction (1/sr); 0 if dist is 0.
+
+    /// Fills dist, wi and pdf_w for this sample taken at surface point `at`;
+    /// call again whenever `light` or `at` changes.
+    void measure(const SurfaceInteraction& at) {
+        const Vec3 d = light.p - at.p;
+        dist = glm::length(d);
+        if (!(dist > 0.f)) {
+            dist = 0.f, wi = Vec3(0.f), pdf_w = 0.0;
+            return;
+        }
+        const Vec3 w = d / dist;
+        wi = at.frame.to_local(w);
+        pdf_w = pdf_a_to_w(light.pdf_a, dist, glm::dot(light.n, w));
+    }
 };
 
 /// One recorded vertex x_k of a camera path (k >= 1; x_0 is the pinhole).
