@@ -283,28 +283,41 @@ void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3&
     si.material = &materials_[info & kMaterialMask];
 }
 
-bool Scene::occluded(const Ray& ray) const {
-    if (observer_) [[unlikely]]
-        observer_->on_occluded(ray);
+namespace {
+// One shadow query; an inline helper so that visible() builds the RTCRay
+// directly instead of through a Ray and a call.
+inline bool occluded_rtc(void* scene, const Vec3& o, const Vec3& d, float tmin, float tmax) {
     RTCRay r;
-    r.org_x = ray.o.x, r.org_y = ray.o.y, r.org_z = ray.o.z;
-    r.dir_x = ray.d.x, r.dir_y = ray.d.y, r.dir_z = ray.d.z;
-    r.tnear = ray.tmin, r.tfar = ray.tmax;
+    r.org_x = o.x, r.org_y = o.y, r.org_z = o.z;
+    r.dir_x = d.x, r.dir_y = d.y, r.dir_z = d.z;
+    r.tnear = tmin, r.tfar = tmax;
     r.time = 0.f, r.mask = 0xffffffffu, r.id = 0, r.flags = 0;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    rtcOccluded1(static_cast<RTCScene>(rtc_scene_), &ctx, &r);
+    rtcOccluded1(static_cast<RTCScene>(scene), &ctx, &r);
     return r.tfar < 0.f;
+}
+}  // namespace
+
+bool Scene::occluded(const Ray& ray) const {
+    if (observer_) [[unlikely]]
+        observer_->on_occluded(ray);
+    return occluded_rtc(rtc_scene_, ray.o, ray.d, ray.tmin, ray.tmax);
 }
 
 bool Scene::visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1) const {
     const Vec3 d = p1 - p0;
     const Vec3 o = offset_ray_origin(p0, n0, d);
-    const Vec3 e = offset_ray_origin(p1, n1, -d);
-    const Vec3 v = e - o;
-    const float dist = glm::length(v);
-    if (!(dist > 0.f)) return true;
-    return !occluded(Ray{o, v / dist, 0.f, dist * (1.f - 1e-4f)});
+    const Vec3 v = offset_ray_origin(p1, n1, -d) - o;
+    if (!(glm::dot(v, v) > 0.f)) return true;
+    // Embree needs no unit direction: the segment is o + t v for t in [0, 1),
+    // shortened by a relative 1e-4 so that the far end's surface is not hit.
+    // A shadow ray thus costs no square root and no division; G-PT casts
+    // about eight per sample.
+    constexpr float kEnd = 1.f - 1e-4f;
+    if (observer_) [[unlikely]]
+        observer_->on_occluded(Ray{o, v, 0.f, kEnd});
+    return !occluded_rtc(rtc_scene_, o, v, 0.f, kEnd);
 }
 
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {

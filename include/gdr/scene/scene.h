@@ -76,7 +76,9 @@ public:
     virtual ~RayObserver() = default;
     /// A closest-hit query (Scene::intersect), before it is traced.
     virtual void on_intersect(const Ray& ray) = 0;
-    /// An any-hit (shadow) query (Scene::occluded, Scene::visible), before it is traced.
+    /// An any-hit (shadow) query (Scene::occluded, Scene::visible), before it is
+    /// traced. Scene::visible's rays span their segment as t in [0, 1): their
+    /// direction is not a unit vector.
     virtual void on_occluded(const Ray& ray) = 0;
 };
 
