@@ -42,17 +42,20 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const Vec3d dy = pz - Vec3d(y.si.p), dx = pz - Vec3d(x.si.p);
     const double ly2 = glm::dot(dy, dy), lx2 = glm::dot(dx, dx);
     if (!(ly2 > 0.0) || !(lx2 > 0.0)) return;
-    const double ly = std::sqrt(ly2), lx = std::sqrt(lx2);
-    const double cos_zy = -glm::dot(nz, dy) / ly, cos_zx = -glm::dot(nz, dx) / lx;
+    // One reciprocal and one division where there were nine divisions.
+    const double ly = std::sqrt(ly2), lx = std::sqrt(lx2), inv_ly = 1.0 / ly;
+    const double dot_y = -glm::dot(nz, dy), dot_x = -glm::dot(nz, dx);  // cosines at the light times distances
+    const double cos_zy = dot_y * inv_ly;
     rec.nee = true;
-    const Vec3 wi_world = Vec3(dy / ly);
+    const Vec3 wi_world = Vec3(dy * inv_ly);
     const Vec3 wi = y.si.frame.to_local(wi_world);
     rec.nee_cos = abs_cos_theta(wi);
     const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
     rec.nee_f = fe.f;
     rec.nee_pdf_bsdf = fe.pdf;
     rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, ly, cos_zy);
-    rec.nee_jacobian = std::abs(cos_zx) > 0.0 ? (std::abs(cos_zy) / ly2) / (std::abs(cos_zx) / lx2) : 0.0;
+    // (|cos_zy| / ly2) / (|cos_zx| / lx2) with cos_zx = dot_x / lx.
+    rec.nee_jacobian = std::abs(dot_x) > 0.0 ? std::abs(cos_zy) * (lx2 * lx) / (std::abs(dot_x) * ly2) : 0.0;
     const Material& light_mat = scene.materials()[scene.mesh().material_ids[ls.prim]];
     const Color le = cos_zy > 0.0 ? light_mat.emission : Color(0.f);
     if (!is_black(le) && !is_black(rec.nee_f)) {

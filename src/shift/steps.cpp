@@ -19,10 +19,12 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     const Vec3d dx = Vec3d(x.si.p) - pn, dy = Vec3d(y.p) - pn;
     const double lx2 = glm::dot(dx, dx), ly2 = glm::dot(dy, dy);
     if (!(lx2 > 0.0) || !(ly2 > 0.0)) return s;
-    const double cos_x = glm::dot(dx, ng) / std::sqrt(lx2), cos_y = glm::dot(dy, ng) / std::sqrt(ly2);
+    // One reciprocal and one division (the Jacobian's) where there were six divisions.
+    const double lx = std::sqrt(lx2), inv_ly = 1.0 / std::sqrt(ly2);
+    const double dot_x = glm::dot(dx, ng), cos_y = glm::dot(dy, ng) * inv_ly;  // dot_x = cos_x * lx
     // Arriving from the other side of the surface would be another kind of path.
-    if (cos_x * cos_y <= 0.0) return s;
-    const Vec3 wi_world = Vec3(-dy / std::sqrt(ly2));
+    if (dot_x * cos_y <= 0.0) return s;
+    const Vec3 wi_world = Vec3(-dy * inv_ly);
     const Vec3 wi = y.frame.to_local(wi_world);
     const Bsdf& bsdf = *y.material->bsdf;
     const BsdfEval fe = bsdf.eval_pdf(in.y.wo, wi, y.uv);
@@ -32,7 +34,7 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     s.wi = wi;
     s.f = fe.f;
     s.pdf = fe.pdf;
-    s.jacobian = std::abs(cos_y) * lx2 / (std::abs(cos_x) * ly2);
+    s.jacobian = std::abs(cos_y) * (lx2 * lx) / (std::abs(dot_x) * ly2);  // |cos_y| lx2 / (|cos_x| ly2)
     s.delta = false;
     return s;
 }
