@@ -69,7 +69,8 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
         if (!X.scattered) break;
         T.inv_bs_pdf = 1.0 / double(X.bs.pdf);
         T.inv_scatter_pdf = T.inv_bs_pdf / double(X.rr_survival);
-        beta *= scatter_weight(X);
+        T.scatter = scatter_weight(X);
+        beta *= T.scatter;
     }
     // Suffix sums, back to front. Where y equals x (same vertices, same
     // densities), gradient_mis_weight(a_t, a_o, a_t, a_o, r) factors into the
@@ -79,10 +80,13 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
     for (size_t k = x.size(); k-- > 0;) {
         const PathVertex& X = x.v[k];
         BaseTerms::Vertex& T = t.v[k];
-        T.suffix = float(pt_mis_weight(heuristic, T.nee_pdf_light, T.nee_pdf_bsdf)) * T.nee_unit;
-        if (X.scattered && k + 1 < x.size()) T.suffix += scatter_weight(X) * next;
+        // Weights only where they multiply something (each costs a division).
+        T.suffix = is_black(T.nee_unit) ? Color(0.f)
+                                        : float(pt_mis_weight(heuristic, T.nee_pdf_light, T.nee_pdf_bsdf)) * T.nee_unit;
+        if (X.scattered && k + 1 < x.size()) T.suffix += T.scatter * next;
         next = T.suffix;
-        if (k >= 1) next += float(pt_mis_weight(heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
+        if (k >= 1 && !is_black(X.emitted))
+            next += float(pt_mis_weight(heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
     }
 }
 
@@ -105,7 +109,8 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
             // the plain path-tracing weight and no offset share, so the base's
             // suffix sums give the rest at once.
             Color c = T.suffix;
-            if (k >= 1) c += float(pt_mis_weight(mis.heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
+            if (k >= 1 && !is_black(X.emitted))
+                c += float(pt_mis_weight(mis.heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
             const Color cx = T.beta * c;
             if (!is_black(cx)) add(e, 1.0, cx, Color(0.f));
             break;

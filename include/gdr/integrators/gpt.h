@@ -29,6 +29,7 @@ struct BaseTerms {
         double inv_nee_pdf_light = 0.0;  ///< 1 / nee_pdf_light (0 if that is 0), in sr.
         double inv_bs_pdf = 0.0;         ///< 1 / the BSDF density of the sampled direction at x_k (sr; 0 if none).
         double inv_scatter_pdf = 0.0;    ///< inv_bs_pdf / the Russian-roulette survival after x_k.
+        Color scatter{0.f};              ///< Throughput of the scattering at x_k (scatter_weight; 0 if none).
         /// Path-tracing-MIS-weighted contributions of the light sample at x_k and of
         /// every later vertex, per unit throughput at x_k (emitter hit at x_k
         /// excluded). An offset that has merged with the base at x_k contributes
