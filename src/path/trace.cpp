@@ -50,22 +50,24 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
                 x.nee.visible = scene.visible(x.si.p, x.si.ng, x.nee.light.p, x.nee.light.n);
             }
         }
-        if (!last) {
-            if (auto bs = bsdf.sample(x.wo, x.si.uv, x.u_lobe, x.u_dir); bs && bs->pdf > 0.f && !is_black(bs->f)) {
-                x.bs = *bs;
-                x.scattered = true;
+        if (last) return;
+        const auto bs = bsdf.sample(x.wo, x.si.uv, x.u_lobe, x.u_dir);
+        if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) return;
+        // The throughput and the next ray read the sample, not its copy in the
+        // vertex: that copy moves 16 bytes at a time, and reading it back at
+        // once stalled store forwarding.
+        x.bs = *bs;
+        x.scattered = true;
+        beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);
+        if (depth >= opt.rr_depth) {
+            const float q = roulette_survival(beta);
+            if (u_rr >= q) {
+                x.scattered = false;
+                return;
             }
+            x.rr_survival = q, beta /= q;
         }
-        if (x.scattered) {
-            beta *= x.bs.f * (abs_cos_theta(x.bs.wi) / x.bs.pdf);
-            if (depth >= opt.rr_depth) {
-                const float q = roulette_survival(beta);
-                if (u_rr >= q) x.scattered = false;
-                else x.rr_survival = q, beta /= q;
-            }
-        }
-        if (!x.scattered) return;
-        ray = spawn_ray(x.si, x.si.frame.to_world(x.bs.wi));
+        ray = spawn_ray(x.si, x.si.frame.to_world(bs->wi));
         ++path.rays;
         hit = scene.intersect(ray, path.v.emplace_back().si);  // invalidates `x`
     }
