@@ -230,9 +230,19 @@ void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInterac
     intersect_n(valid, static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
     for (int i = 0; i < N; ++i) {
         hit[i] = active[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
-        if (hit[i])
-            fill_hit(rays[i], rh.hit.primID[i], rh.hit.u[i], rh.hit.v[i],
-                     Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]), rh.ray.tfar[i], *si[i]);
+        if (!hit[i]) continue;
+        const uint32_t prim = rh.hit.primID[i];
+        // Coherent rays often hit one triangle: a flat one's normal and frame
+        // (a square root and two divisions) are then copied from an earlier lane.
+        int same = -1;
+        if (!(hit_info_[prim] & kSmooth))
+            for (int j = 0; j < i && same < 0; ++j)
+                if (hit[j] && rh.hit.primID[j] == prim) same = j;
+        if (same >= 0)
+            fill_hit_like(rays[i], rh.hit.u[i], rh.hit.v[i], rh.ray.tfar[i], *si[same], *si[i]);
+        else
+            fill_hit(rays[i], prim, rh.hit.u[i], rh.hit.v[i], Vec3(rh.hit.Ng_x[i], rh.hit.Ng_y[i], rh.hit.Ng_z[i]),
+                     rh.ray.tfar[i], *si[i]);
     }
 }
 
@@ -281,6 +291,24 @@ void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3&
         si.uv = mesh_.uvs.empty() ? Vec2(b1, b2) : Vec2(0.f);
     }
     si.material = &materials_[info & kMaterialMask];
+}
+
+void Scene::fill_hit_like(const Ray& ray, float b1, float b2, float tfar, const SurfaceInteraction& like,
+                          SurfaceInteraction& si) const {
+    // What fill_hit() computes from the triangle alone is taken from `like`.
+    si.t = tfar;
+    si.p = ray.o + si.t * ray.d;
+    si.prim = like.prim;
+    si.ng = like.ng;
+    si.frame = like.frame;
+    const uint32_t info = hit_info_[like.prim];
+    if (info & kHasUv) {
+        const Vec2* uv = &mesh_.uvs[3 * like.prim];
+        si.uv = (1.f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
+    } else {
+        si.uv = mesh_.uvs.empty() ? Vec2(b1, b2) : Vec2(0.f);
+    }
+    si.material = like.material;
 }
 
 namespace {

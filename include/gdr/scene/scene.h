@@ -206,6 +206,9 @@ private:
     // Fills a hit record from Embree's hit (primitive, barycentrics, unnormalised Ng, distance).
     void fill_hit(const Ray& ray, uint32_t prim, float b1, float b2, const Vec3& ng, float t,
                   SurfaceInteraction& si) const;
+    // fill_hit() for a hit on the flat triangle of `like`, reusing its normal and frame.
+    void fill_hit_like(const Ray& ray, float b1, float b2, float tfar, const SurfaceInteraction& like,
+                       SurfaceInteraction& si) const;
 };
 
 /// Offset of a ray origin along the geometric normal that escapes the surface's
