@@ -280,7 +280,14 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
     // 4-ray packet after the base was traced, and the 8-ray packet that also
     // holds the base's camera ray.
     const Vec2 steps[4] = {{1.f, 0.f}, {-1.f, 0.f}, {0.f, 1.f}, {0.f, -1.f}};
+    // Hits on one triangle must also agree in normal and shading frame (packet
+    // lanes on one flat triangle share them, see Scene::fill_hit_like).
     const auto same_surface = [](const SurfaceInteraction& a, const SurfaceInteraction& b) {
+        if (a.prim == b.prim) {
+            REQUIRE(glm::length(a.ng - b.ng) <= 1e-5f);
+            REQUIRE(glm::length(a.frame.n - b.frame.n) <= 1e-5f);
+            REQUIRE(glm::length(a.frame.s - b.frame.s) <= 1e-5f);
+        }
         return a.material == b.material && glm::length(a.p - b.p) <= 1e-4f * (1.f + glm::length(b.p));
     };
     // False if the first hits lie on different surfaces; otherwise requires equal offsets.
