@@ -263,52 +263,47 @@ void Scene::intersect8(const Ray rays[8], const bool active[8], SurfaceInteracti
     intersect_packet<8, RTCRayHit8>(rays, active, si, hit, rtcIntersect8);
 }
 
-void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3& ng, float tfar,
-                     SurfaceInteraction& si) const {
+void Scene::fill_hit_point(const Ray& ray, uint32_t t, float b1, float b2, float tfar,
+                           SurfaceInteraction& si) const {
     const uint32_t info = hit_info_[t];
-    const float b0 = 1.f - b1 - b2;
     // p from the ray, not from the corners: that would be a cache miss, and
     // its rounding (~1e-7 of the distance) is far below the 1e-4 relative
-    // offset of spawned rays. Embree's Ng is cross(p1 - p0, p2 - p0), our winding.
+    // offset of spawned rays.
     si.t = tfar;
     si.p = ray.o + si.t * ray.d;
     si.prim = t;
-    si.ng = glm::normalize(ng);
-    Vec3 ns = si.ng;
-    if (info & kSmooth) {
-        const Vec3* n = &mesh_.normals[3 * t];
-        const Vec3 v = b0 * n[0] + b1 * n[1] + b2 * n[2];
-        const float l = glm::length(v);
-        if (l > 0.f) ns = v / l;
-        // Shading normals on the other side of the face than ng would let light leak.
-        if (glm::dot(ns, si.ng) < 0.f) ns = -ns;
-    }
-    si.frame = Frame(ns);
     if (info & kHasUv) {
         const Vec2* uv = &mesh_.uvs[3 * t];
-        si.uv = b0 * uv[0] + b1 * uv[1] + b2 * uv[2];
+        si.uv = (1.f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
     } else {
         si.uv = mesh_.uvs.empty() ? Vec2(b1, b2) : Vec2(0.f);
     }
     si.material = &materials_[info & kMaterialMask];
 }
 
+void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3& ng, float tfar,
+                     SurfaceInteraction& si) const {
+    fill_hit_point(ray, t, b1, b2, tfar, si);
+    // Embree's Ng is cross(p1 - p0, p2 - p0), our winding.
+    si.ng = glm::normalize(ng);
+    Vec3 ns = si.ng;
+    if (hit_info_[t] & kSmooth) {
+        const Vec3* n = &mesh_.normals[3 * t];
+        const Vec3 v = (1.f - b1 - b2) * n[0] + b1 * n[1] + b2 * n[2];
+        const float l = glm::length(v);
+        if (l > 0.f) ns = v / l;
+        // Shading normals on the other side of the face than ng would let light leak.
+        if (glm::dot(ns, si.ng) < 0.f) ns = -ns;
+    }
+    si.frame = Frame(ns);
+}
+
 void Scene::fill_hit_like(const Ray& ray, float b1, float b2, float tfar, const SurfaceInteraction& like,
                           SurfaceInteraction& si) const {
+    fill_hit_point(ray, like.prim, b1, b2, tfar, si);
     // What fill_hit() computes from the triangle alone is taken from `like`.
-    si.t = tfar;
-    si.p = ray.o + si.t * ray.d;
-    si.prim = like.prim;
     si.ng = like.ng;
     si.frame = like.frame;
-    const uint32_t info = hit_info_[like.prim];
-    if (info & kHasUv) {
-        const Vec2* uv = &mesh_.uvs[3 * like.prim];
-        si.uv = (1.f - b1 - b2) * uv[0] + b1 * uv[1] + b2 * uv[2];
-    } else {
-        si.uv = mesh_.uvs.empty() ? Vec2(b1, b2) : Vec2(0.f);
-    }
-    si.material = like.material;
 }
 
 namespace {

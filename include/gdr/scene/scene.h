@@ -203,6 +203,8 @@ private:
     template <int N, class RayHitN, class IntersectN>
     void intersect_packet(const Ray* rays, const bool* active, SurfaceInteraction* const* si, bool* hit,
                           IntersectN intersect_n) const;
+    // The parts of a hit record that depend on the hit point: t, p, prim, uv, material.
+    void fill_hit_point(const Ray& ray, uint32_t prim, float b1, float b2, float tfar, SurfaceInteraction& si) const;
     // Fills a hit record from Embree's hit (primitive, barycentrics, unnormalised Ng, distance).
     void fill_hit(const Ray& ray, uint32_t prim, float b1, float b2, const Vec3& ng, float t,
                   SurfaceInteraction& si) const;
