@@ -45,6 +45,7 @@ public:
     uint32_t flags() const override { return kReflection | kDiffuse; }
     Color albedo(const Vec2& uv) const override { return kd_->eval(uv); }
     float min_roughness() const override { return 1.f; }
+    bool wo_side_only() const override { return true; }
 
 private:
     // kd / pi; kept for untextured materials, which are most of them, to save

@@ -55,13 +55,11 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
             const LightSample& ls = X.nee.light;
             T.nee_pdf_light = X.nee.pdf_w;
             if (T.nee_pdf_light > 0.0) {
-                const Bsdf& bsdf = *X.si.material->bsdf;
                 const Vec3& wi = X.nee.wi;
-                const BsdfEval fe = bsdf.eval_pdf(X.wo, wi, X.si.uv);
-                T.nee_pdf_bsdf = fe.pdf;
+                T.nee_pdf_bsdf = X.nee.pdf_bsdf;
                 T.inv_nee_pdf_light = 1.0 / T.nee_pdf_light;
                 if (X.nee.visible) {
-                    T.nee_unit = fe.f * abs_cos_theta(wi) * ls.radiance * float(T.inv_nee_pdf_light);
+                    T.nee_unit = X.nee.f * abs_cos_theta(wi) * ls.radiance * float(T.inv_nee_pdf_light);
                     T.nee = beta * T.nee_unit;
                 }
             }

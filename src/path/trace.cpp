@@ -44,7 +44,7 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
             assign_in_place(x.nee.light, [&] { return scene.sample_light(x.si.p, u_light, u_point); });
             x.nee.u_select = u_light;
             x.nee.u_point = u_point;
-            x.nee.measure(x.si);
+            x.nee.measure(x.si, x.wo);
             if (!is_black(x.nee.light.radiance)) {
                 ++path.rays;
                 x.nee.visible = scene.visible(x.si.p, x.si.ng, x.nee.light.p, x.nee.light.n);

@@ -11,6 +11,13 @@ namespace gdr {
 
 namespace {
 
+// True if the offset vertex y, sharing the base vertex x, scatters with x's
+// BSDF values for any wi: the BSDF depends on wo only through its side, and
+// both arrive on the same side.
+inline bool same_side_values(const OffsetVertex& y, const PathVertex& x) {
+    return y.si.material->wo_side_only && y.wo.z * x.wo.z > 0.f;
+}
+
 // The base's light sample at x_k, seen from the offset vertex y_k.
 void shift_light_connection(const Scene& scene, const ShiftConfig& config, const CameraPath& base, size_t k,
                             OffsetRecord& rec, uint64_t& rays) {
@@ -24,7 +31,9 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         // the BSDF's incoming direction differs.
         if (!(x.nee.dist > 0.f)) return;
         const Vec3& wi = x.nee.wi;
-        const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
+        // Arriving on the base's side of a BSDF that sees only that side, the
+        // offset's values are the base's.
+        const BsdfEval fe = same_side_values(y, x) ? BsdfEval{x.nee.f, x.nee.pdf_bsdf} : bsdf.eval_pdf(y.wo, wi, y.si.uv);
         rec.nee = true;
         rec.nee_f = fe.f;
         rec.nee_cos = abs_cos_theta(wi);
@@ -176,6 +185,8 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
                 const auto e = y.si.material->bsdf->eval_delta(y.wo, s.wi, y.si.uv);
                 if (!e) return;
                 s.f = e->f, s.pdf = e->pdf, s.delta = true;
+            } else if (same_side_values(y, x)) {
+                s.f = x.bs.f, s.pdf = x.bs.pdf;  // sample() returns what eval_pdf() would
             } else {
                 const BsdfEval fe = y.si.material->bsdf->eval_pdf(y.wo, s.wi, y.si.uv);
                 s.f = fe.f, s.pdf = fe.pdf;

@@ -89,8 +89,8 @@ CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& of
         }
         const OffsetRecord& r = y.v[k];
         v.si = r.y.si;
-        if (v.nee.valid) v.nee.measure(v.si);  // the same light point, seen from y_k
         v.wo = r.y.wo;
+        if (v.nee.valid) v.nee.measure(v.si, v.wo);  // the same light point, seen from y_k
         v.emitted = r.y.emitted;
         v.scattered = k + 1 < y.size();
         if (v.scattered) {

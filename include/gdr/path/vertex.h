@@ -43,19 +43,24 @@ struct LightConnection {
     float dist = 0.f;         ///< Distance from the vertex to the light point (scene units); 0 if they coincide.
     Vec3 wi{0.f};             ///< Unit direction to the light point in the vertex's shading frame (if dist > 0).
     double pdf_w = 0.0;       ///< Light-sampling density of that direction (1/sr); 0 if dist is 0.
+    Color f{0.f};             ///< BSDF value at the vertex for (wo, wi) (1/sr; 0 if dist is 0).
+    float pdf_bsdf = 0.f;     ///< BSDF sampling density of wi at the vertex given wo (1/sr; 0 if dist is 0).
 
-    /// Fills dist, wi and pdf_w for this sample taken at surface point `at`;
-    /// call again whenever `light` or `at` changes.
-    void measure(const SurfaceInteraction& at) {
+    /// Fills dist, wi, pdf_w, f and pdf_bsdf for this sample taken at surface
+    /// point `at` entered from local direction `wo`; call again whenever
+    /// `light`, `at` or `wo` changes.
+    void measure(const SurfaceInteraction& at, const Vec3& wo) {
         const Vec3 d = light.p - at.p;
         dist = glm::length(d);
         if (!(dist > 0.f)) {
-            dist = 0.f, wi = Vec3(0.f), pdf_w = 0.0;
+            dist = 0.f, wi = Vec3(0.f), pdf_w = 0.0, f = Color(0.f), pdf_bsdf = 0.f;
             return;
         }
         const Vec3 w = d / dist;
         wi = at.frame.to_local(w);
         pdf_w = pdf_a_to_w(light.pdf_a, dist, glm::dot(light.n, w));
+        const BsdfEval fe = at.material->bsdf->eval_pdf(wo, wi, at.uv);
+        f = fe.f, pdf_bsdf = fe.pdf;
     }
 };
 

@@ -80,6 +80,11 @@ public:
     virtual float min_roughness() const = 0;
     /// Relative index of refraction (inside / outside) for dielectrics, 1 otherwise.
     virtual float eta() const { return 1.f; }
+    /// True if f and pdf depend on wo only through the side of the surface it
+    /// lies on (the sign of wo.z), as for Lambertian reflection: paths that
+    /// reach the vertex from different directions on one side then scatter
+    /// with the same values, and a shift can reuse the base's.
+    virtual bool wo_side_only() const { return false; }
 
     /// True if the BSDF has only delta lobes.
     bool is_pure_delta() const { return (flags() & (kDiffuse | kGlossy)) == 0; }

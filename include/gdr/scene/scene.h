@@ -23,6 +23,7 @@ struct Material {
     /// cheaper than a virtual call on that path.
     float min_roughness = 1.f;
     bool pure_delta = false;      ///< See min_roughness.
+    bool wo_side_only = false;    ///< bsdf->wo_side_only(), likewise.
 };
 
 /// A triangle soup ready for the BVH: three corners per triangle.
