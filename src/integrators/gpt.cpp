@@ -215,6 +215,7 @@ public:
                                                                                         : MisHeuristic::Balance;
         trace_.max_depth = int(p.get_int("max_depth", -1));
         trace_.rr_depth = int(p.get_int("rr_depth", 5));
+        trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         const std::string rec = p.get_choice("reconstruct", "l1+l2", {"l1+l2", "l1", "l2", "none"});
         solve_l1_ = rec == "l1+l2" || rec == "l1";

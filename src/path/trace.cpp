@@ -34,8 +34,9 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         const Vec2 u_point(sampler.at(block + dims::kLightPoint), sampler.at(block + dims::kLightPoint + 1));
         x.u_lobe = sampler.at(block + dims::kBsdfLobe);
         x.u_dir = Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1));
-        const float u_rr = sampler.at(block + dims::kRoulette);
-        x.u_classify = sampler.at(block + dims::kClassify);
+        // Numbers are drawn only where they are read: roulette from rr_depth
+        // on, classification only for probabilistic classification.
+        if (opt.classify_numbers) x.u_classify = sampler.at(block + dims::kClassify);
         sampler.set_dimension(block + dims::kPerVertex);
 
         const Bsdf& bsdf = *x.si.material->bsdf;
@@ -61,7 +62,7 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);
         if (depth >= opt.rr_depth) {
             const float q = roulette_survival(beta);
-            if (u_rr >= q) {
+            if (sampler.at(block + dims::kRoulette) >= q) {
                 x.scattered = false;
                 return;
             }

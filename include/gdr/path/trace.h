@@ -10,6 +10,10 @@ namespace gdr {
 struct TraceOptions {
     int max_depth = -1;  ///< Longest path in segments (camera to light); -1 unlimited.
     int rr_depth = 5;    ///< Vertex index from which Russian roulette may end the path.
+    /// Draw every vertex's classification number (PathVertex::u_classify),
+    /// which only probabilistic classification reads; without it the number
+    /// stays 0.5 and a vertex costs one hash less.
+    bool classify_numbers = true;
 };
 
 /// Traces the camera ray through `film` and records every vertex with its

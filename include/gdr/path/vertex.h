@@ -74,7 +74,7 @@ struct PathVertex {
     BsdfSample bs;              ///< The sampled direction wi (local), f, pdf (solid angle), lobe, eta.
     float u_lobe = 0.f;         ///< Random number that chose the lobe (for replay).
     Vec2 u_dir{0.f};            ///< Random numbers that chose the direction (for replay).
-    float u_classify = 0.5f;    ///< Random number of the probabilistic classification.
+    float u_classify = 0.5f;    ///< Random number of the probabilistic classification (0.5 unless TraceOptions::classify_numbers).
     float rr_survival = 1.f;    ///< Russian roulette survival probability applied after x_k (1 if none).
 };
 
