@@ -344,6 +344,85 @@ bool Scene::visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& 
     return !occluded_rtc(rtc_scene_, o, v, 0.f, kEnd);
 }
 
+namespace {
+// The four-lane form of offset_ray_origin(p, ng, dir) with dot(ng, dir) = dn,
+// in the same operations and order (so the same bits).
+inline void offset_origin4(const __m128 p[3], const __m128 n[3], __m128 dn, __m128 o[3]) {
+    const __m128 sign = _mm_set1_ps(-0.f);
+    const __m128 ax = _mm_andnot_ps(sign, p[0]), ay = _mm_andnot_ps(sign, p[1]), az = _mm_andnot_ps(sign, p[2]);
+    const __m128 scale =
+        _mm_mul_ps(_mm_set1_ps(1e-4f), _mm_max_ps(_mm_set1_ps(1.f), _mm_max_ps(ax, _mm_max_ps(ay, az))));
+    // scale where dn >= 0, else -scale (also for NaN, like the scalar compare).
+    const __m128 s = _mm_xor_ps(scale, _mm_andnot_ps(_mm_cmpge_ps(dn, _mm_setzero_ps()), sign));
+    for (int c = 0; c < 3; ++c) o[c] = _mm_add_ps(p[c], _mm_mul_ps(s, n[c]));
+}
+
+// (a.x b.x + a.y b.y) + a.z b.z, as glm::dot adds.
+inline __m128 dot4(const __m128 a[3], const __m128 b[3]) {
+    return _mm_add_ps(_mm_add_ps(_mm_mul_ps(a[0], b[0]), _mm_mul_ps(a[1], b[1])), _mm_mul_ps(a[2], b[2]));
+}
+
+}  // namespace
+
+// visible8() as a packet of N = 4 or 8 lanes (RTCRayN).
+template <int N, class RayN, class OccludedN>
+void Scene::visible_packet(const VisibilityBatch& q, bool* out, OccludedN occluded_n) const {
+    // visible()'s segments, four lanes at a time. Lane by lane (scalar loads
+    // and stores), the packet's setup cost about what Embree saves by
+    // tracing it as one.
+    constexpr float kEnd = 1.f - 1e-4f;
+    const int n = q.n;
+    alignas(32) RayN r;
+    alignas(32) int valid[N];
+    for (int b = 0; b < N; b += 4) {
+        const __m128 used = _mm_castsi128_ps(_mm_cmplt_epi32(_mm_setr_epi32(b, b + 1, b + 2, b + 3), _mm_set1_epi32(n)));
+        // Unused lanes are zeroed: uninitialised, they could hold denormals, which are slow.
+        __m128 p0[3], n0[3], p1[3], n1[3];
+        for (int c = 0; c < 3; ++c) {
+            p0[c] = _mm_and_ps(used, _mm_load_ps(q.p0[c] + b)), n0[c] = _mm_and_ps(used, _mm_load_ps(q.n0[c] + b));
+            p1[c] = _mm_and_ps(used, _mm_load_ps(q.p1[c] + b)), n1[c] = _mm_and_ps(used, _mm_load_ps(q.n1[c] + b));
+        }
+        __m128 d[3], o[3], e[3], v[3];
+        for (int c = 0; c < 3; ++c) d[c] = _mm_sub_ps(p1[c], p0[c]);
+        offset_origin4(p0, n0, dot4(n0, d), o);
+        // dot(n1, -d) is -dot(n1, d) exactly.
+        offset_origin4(p1, n1, _mm_xor_ps(dot4(n1, d), _mm_set1_ps(-0.f)), e);
+        for (int c = 0; c < 3; ++c) v[c] = _mm_sub_ps(e[c], o[c]);
+        // Degenerate segments (and unused lanes) are not traced: visible, as in visible().
+        const __m128 live = _mm_cmpgt_ps(dot4(v, v), _mm_setzero_ps());
+        _mm_store_si128(reinterpret_cast<__m128i*>(valid + b), _mm_castps_si128(_mm_and_ps(live, used)));
+        _mm_store_ps(r.org_x + b, o[0]), _mm_store_ps(r.org_y + b, o[1]), _mm_store_ps(r.org_z + b, o[2]);
+        _mm_store_ps(r.dir_x + b, v[0]), _mm_store_ps(r.dir_y + b, v[1]), _mm_store_ps(r.dir_z + b, v[2]);
+        _mm_store_ps(r.tnear + b, _mm_setzero_ps()), _mm_store_ps(r.tfar + b, _mm_set1_ps(kEnd));
+        _mm_store_ps(r.time + b, _mm_setzero_ps());
+        _mm_store_si128(reinterpret_cast<__m128i*>(r.mask + b), _mm_set1_epi32(-1));
+        _mm_store_si128(reinterpret_cast<__m128i*>(r.id + b), _mm_setzero_si128());
+        _mm_store_si128(reinterpret_cast<__m128i*>(r.flags + b), _mm_setzero_si128());
+    }
+    if (observer_) [[unlikely]]
+        for (int i = 0; i < n; ++i)
+            if (valid[i])
+                observer_->on_occluded(Ray{Vec3(r.org_x[i], r.org_y[i], r.org_z[i]),
+                                           Vec3(r.dir_x[i], r.dir_y[i], r.dir_z[i]), 0.f, kEnd});
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    // No coherent hint: for shadow packets it made Embree's kernel slower.
+    occluded_n(valid, static_cast<RTCScene>(rtc_scene_), &ctx, &r);
+    for (int i = 0; i < n; ++i) out[i] = !(r.tfar[i] < 0.f);
+}
+
+void Scene::visible8(const VisibilityBatch& q, bool out[8]) const {
+    if (q.n <= 1 || !packets4_ || (q.n > 4 && !packets8_)) {
+        for (int i = 0; i < q.n; ++i)
+            out[i] = visible(Vec3(q.p0[0][i], q.p0[1][i], q.p0[2][i]), Vec3(q.n0[0][i], q.n0[1][i], q.n0[2][i]),
+                             Vec3(q.p1[0][i], q.p1[1][i], q.p1[2][i]), Vec3(q.n1[0][i], q.n1[1][i], q.n1[2][i]));
+    } else if (q.n <= 4) {
+        visible_packet<4, RTCRay4>(q, out, rtcOccluded4);
+    } else {
+        visible_packet<8, RTCRay8>(q, out, rtcOccluded8);
+    }
+}
+
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
     LightSample ls;
     if (emitters_.empty()) return ls;

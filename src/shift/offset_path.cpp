@@ -11,6 +11,50 @@ namespace gdr {
 
 namespace {
 
+// Shadow segments of several offset walks, traced together as packets after
+// the walks (Scene::visible8). A walk goes on as if each queued segment were
+// unblocked; resolve() then zeroes blocked light connections and cuts an
+// offset at a blocked reconnection, which gives what stopping there would have.
+struct DeferredVisibility {
+    static constexpr int kMax = 16;
+    struct Target {
+        OffsetPath* path;
+        size_t k;        // depth of the light connection or of the reconnecting step
+        bool reconnect;  // a reconnection y_k -> x_{k+1}, else the light connection at y_k
+    };
+    // Filled during the walks and traced after them: by then the stores have
+    // left the store buffer, and the packet's setup reads four lanes at a time.
+    VisibilityBatch q[kMax / VisibilityBatch::kLanes];
+    Target t[kMax];
+    int n = 0;
+
+    bool full() const { return n == kMax; }
+    void add(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1, const Target& target) {
+        q[n / VisibilityBatch::kLanes].add(p0, n0, p1, n1);
+        t[n++] = target;
+    }
+    void resolve(const Scene& scene) {
+        bool vis[kMax];
+        for (int b = 0; b * VisibilityBatch::kLanes < n; ++b) scene.visible8(q[b], vis + b * VisibilityBatch::kLanes);
+        // A cut only removes records beyond its depth, so targets are checked against the records left.
+        for (int i = 0; i < n; ++i) {
+            if (vis[i]) continue;
+            OffsetPath& y = *t[i].path;
+            const size_t k = t[i].k;
+            if (k >= y.v.size()) continue;  // beyond an earlier cut
+            if (!t[i].reconnect) {
+                y.v[k].nee_radiance = Color(0.f);
+            } else if (y.v[k].step.kind == ShiftStep::Kind::Reconnect) {
+                y.v[k].step = ShiftStep{};  // Fail, as a tested reconnection would have
+                y.v.resize(k + 1);
+                y.merged_from = size_t(-1);
+            }
+        }
+        n = 0;
+        for (VisibilityBatch& b : q) b.n = 0;
+    }
+};
+
 // True if the offset vertex y, sharing the base vertex x, scatters with x's
 // BSDF values for any wi: the BSDF depends on wo only through its side, and
 // both arrive on the same side.
@@ -18,9 +62,11 @@ inline bool same_side_values(const OffsetVertex& y, const PathVertex& x) {
     return y.si.material->wo_side_only && y.wo.z * x.wo.z > 0.f;
 }
 
-// The base's light sample at x_k, seen from the offset vertex y_k.
+// The base's light sample at x_k, seen from the offset vertex y_k (of
+// `path`); its shadow segment is queued in `defer` if given and not full.
 void shift_light_connection(const Scene& scene, const ShiftConfig& config, const CameraPath& base, size_t k,
-                            OffsetRecord& rec, uint64_t& rays) {
+                            OffsetPath& path, uint64_t& rays, DeferredVisibility* defer) {
+    OffsetRecord& rec = path.v[k];
     const PathVertex& x = base.v[k];
     if (!x.nee.valid) return;
     const LightSample& ls = x.nee.light;
@@ -69,7 +115,12 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const Color le = cos_zy > 0.0 ? light_mat.emission : Color(0.f);
     if (!is_black(le) && !is_black(rec.nee_f)) {
         ++rays;
-        rec.nee_radiance = scene.visible(y.si.p, y.si.ng, ls.p, ls.n) ? le : Color(0.f);
+        if (defer && !defer->full()) {
+            rec.nee_radiance = le;
+            defer->add(y.si.p, y.si.ng, ls.p, ls.n, {&path, k, false});
+        } else {
+            rec.nee_radiance = scene.visible(y.si.p, y.si.ng, ls.p, ls.n) ? le : Color(0.f);
+        }
     }
 }
 
@@ -83,7 +134,12 @@ void set_on_base(OffsetVertex& v, const PathVertex& next, const Vec3& from) {
 }
 
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
-                 OffsetPath& out);
+                 OffsetPath& out, DeferredVisibility* defer);
+
+// The offset's vertex count once its walk (and any cut) is final.
+void finish_offset(const CameraPath& base, OffsetPath& out) {
+    out.length = out.merged_from != size_t(-1) ? base.size() : out.v.size();
+}
 
 void reset(OffsetPath& out) {
     out.v.clear();
@@ -103,19 +159,34 @@ SurfaceInteraction* start_offset(const Scene& scene, const Vec2& film, const Vec
 }
 
 // After start_offset's camera ray was traced: walks on from its hit, or
-// drops the first record on a miss.
+// drops the first record on a miss. With `defer`, the walk's shadow segments
+// are queued there, and `out` is final (and finish_offset() called) only once
+// they are resolved.
 void complete_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
-                     const Ray& ray, bool hit, OffsetPath& out) {
+                     const Ray& ray, bool hit, OffsetPath& out, DeferredVisibility* defer = nullptr) {
     if (hit && base.size() > 0) {
         out.v.reserve(base.size());
         OffsetRecord& r0 = out.v[0];
         r0.y.wo = r0.y.si.frame.to_local(-ray.d);
         r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
-        walk_offset(scene, shift, config, base, out);
+        walk_offset(scene, shift, config, base, out, defer);
     } else {
         out.v.clear();
     }
-    out.length = out.merged_from != size_t(-1) ? base.size() : out.v.size();
+    if (!defer) finish_offset(base, out);
+}
+
+// complete_offset() of the traced ones of four offsets, their shadow
+// segments traced as packets: they start at neighbouring points and mostly
+// end at the base's light points and next vertices, so they share traversal.
+void complete_offsets4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
+                       const Ray rays[4], const bool traced[4], const bool hit[4], OffsetPath out[4]) {
+    DeferredVisibility defer;
+    for (int i = 0; i < 4; ++i)
+        if (traced[i]) complete_offset(scene, shift, config, base, rays[i], hit[i], out[i], &defer);
+    defer.resolve(scene);
+    for (int i = 0; i < 4; ++i)
+        if (traced[i]) finish_offset(base, out[i]);
 }
 
 }  // namespace
@@ -140,8 +211,7 @@ void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConf
         si[i] = traced[i] ? start_offset(scene, base.film, pixel_offsets[i], out[i], rays[i]) : nullptr;
     }
     scene.intersect4(rays, traced, si, hit);  // the hits are written into the first records
-    for (int i = 0; i < 4; ++i)
-        if (traced[i]) complete_offset(scene, shift, config, base, rays[i], hit[i], out[i]);
+    complete_offsets4(scene, shift, config, base, rays, traced, hit, out);
 }
 
 void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config,
@@ -160,18 +230,17 @@ void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const
     }
     scene.intersect8(rays, traced, si, hit);
     continue_camera_path(scene, sampler, opt, base, rays[0], hit[0]);
-    for (int i = 0; i < 4; ++i)
-        if (traced[1 + i]) complete_offset(scene, shift, config, base, rays[1 + i], hit[1 + i], out[i]);
+    complete_offsets4(scene, shift, config, base, rays + 1, traced + 1, hit + 1, out);
 }
 
 namespace {
 
 // Continues an offset path whose first vertex out.v[0] is set.
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
-                 OffsetPath& out) {
+                 OffsetPath& out, DeferredVisibility* defer) {
     for (size_t k = 0; k < base.size(); ++k) {
+        shift_light_connection(scene, config, base, k, out, out.rays, defer);
         OffsetRecord& rec = out.v[k];
-        shift_light_connection(scene, config, base, k, rec, out.rays);
         const PathVertex& x = base.v[k];
         if (!x.scattered || k + 1 >= base.size()) return;
         const PathVertex& next = base.v[k + 1];
@@ -196,10 +265,20 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
             out.merged_from = k + 1;  // same vertex, same outgoing direction: y is x from here on
             return;
         }
-        assign_in_place(s, [&] { return shift.step(ShiftStepInput{scene, config, base, k, y}); });
+        // The walk tests a reconnection's segment itself (queued, or at once)
+        // unless the shift did: every traced segment is then counted, blocked or not.
+        assign_in_place(s, [&] { return shift.step(ShiftStepInput{scene, config, base, k, y, true}); });
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
+            if (s.visibility_deferred) {
+                if (defer && !defer->full()) {
+                    defer->add(y.si.p, y.si.ng, next.si.p, next.si.ng, {&out, k, true});
+                } else if (!scene.visible(y.si.p, y.si.ng, next.si.p, next.si.ng)) {
+                    s = ShiftStep{};  // Fail
+                    return;
+                }
+            }
             const Vec3 from = y.si.p;
             set_on_base(out.v.emplace_back().y, next, from);  // out.v may move: `y` and `s` are dead here
             continue;

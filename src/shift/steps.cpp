@@ -29,7 +29,10 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     const Bsdf& bsdf = *y.material->bsdf;
     const BsdfEval fe = bsdf.eval_pdf(in.y.wo, wi, y.uv);
     if (is_black(fe.f)) return s;
-    if (!in.scene.visible(y.p, y.ng, next.si.p, next.si.ng)) return s;
+    if (in.defer_visibility)
+        s.visibility_deferred = true;
+    else if (!in.scene.visible(y.p, y.ng, next.si.p, next.si.ng))
+        return s;
     s.kind = ShiftStep::Kind::Reconnect;
     s.wi = wi;
     s.f = fe.f;

@@ -83,6 +83,21 @@ public:
     virtual void on_occluded(const Ray& ray) = 0;
 };
 
+/// Up to 8 segments for Scene::visible8(), kept in the structure-of-arrays
+/// layout of Embree's packets: segment i joins surface points p0 and p1
+/// (world space; coordinate c of p0 is p0[c][i]) whose geometric normals n0
+/// and n1 offset its ends. Lanes from n on are ignored (and not initialised).
+struct VisibilityBatch {
+    static constexpr int kLanes = 8;
+    alignas(16) float p0[3][kLanes], n0[3][kLanes], p1[3][kLanes], n1[3][kLanes];
+    int n = 0;  ///< Segments in use.
+    /// Appends the segment a -> b with normals na and nb; the batch must not be full.
+    void add(const Vec3& a, const Vec3& na, const Vec3& b, const Vec3& nb) {
+        for (int c = 0; c < 3; ++c) p0[c][n] = a[c], n0[c][n] = na[c], p1[c][n] = b[c], n1[c][n] = nb[c];
+        ++n;
+    }
+};
+
 /// An immutable, thread-safe scene for intersection and light sampling.
 class Scene {
 public:
@@ -112,6 +127,13 @@ public:
     /// True if the straight segment between two surface points is unblocked
     /// (ends offset along their normals to avoid self-hits).
     bool visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1) const;
+    /// visible() of a batch's segments traced as one Embree packet: out[i]
+    /// is visible() of segment i, up to the packet kernel's rounding.
+    /// Segments from neighbouring points to shared ends (a base path's four
+    /// offsets towards its light point and its next vertex) share traversal.
+    /// Up to four segments go as a 4-ray packet; single queries where Embree
+    /// has no native packet kernel.
+    void visible8(const VisibilityBatch& b, bool out[8]) const;
 
     /// Samples a point on an emitter by power then area (u_sel picks the triangle, u the point).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
@@ -204,6 +226,8 @@ private:
     template <int N, class RayHitN, class IntersectN>
     void intersect_packet(const Ray* rays, const bool* active, SurfaceInteraction* const* si, bool* hit,
                           IntersectN intersect_n) const;
+    template <int N, class RayN, class OccludedN>
+    void visible_packet(const VisibilityBatch& q, bool* out, OccludedN occluded_n) const;
     // The parts of a hit record that depend on the hit point: t, p, prim, uv, material.
     void fill_hit_point(const Ray& ray, uint32_t prim, float b1, float b2, float tfar, SurfaceInteraction& si) const;
     // Fills a hit record from Embree's hit (primitive, barycentrics, unnormalised Ng, distance).

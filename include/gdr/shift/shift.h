@@ -52,6 +52,11 @@ struct ShiftStepInput {
     const CameraPath& base;    ///< The recorded base path.
     size_t k;                  ///< Index of the current base vertex (base.v[k] = x_{k+1} in 1-based terms).
     const OffsetVertex& y;     ///< The offset's vertex at the same depth.
+    /// The caller will test a reconnection's segment y_k -> x_{k+1} itself
+    /// (batched with other offsets' segments): a step may then skip that test
+    /// and set ShiftStep::visibility_deferred. Steps that ignore this flag and
+    /// test visibility themselves stay correct.
+    bool defer_visibility = false;
 };
 
 /// The result of shifting the base's scattering at x_k onto y_k.
@@ -74,6 +79,10 @@ struct ShiftStep {
     /// The step is only valid if the vertex it reaches is NOT connectable (otherwise
     /// the inverse shift would have reconnected there, and T would not be invertible).
     bool reject_if_connectable = false;
+    /// Kind Reconnect whose segment y_k -> x_{k+1} the step did not test for
+    /// visibility (only when the input's defer_visibility was set): the
+    /// caller tests it and turns the step into Fail if it is blocked.
+    bool visibility_deferred = false;
 };
 
 /// A shift mapping: a type with a name and a step() that shifts one vertex.

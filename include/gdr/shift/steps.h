@@ -27,7 +27,8 @@ inline bool can_reconnect(const ShiftStepInput& in) {
 }
 
 /// Reconnection y_k -> x_{k+1} (PI): fails if the segment is blocked, arrives from
-/// the other side of x_{k+1}'s surface, or carries no throughput.
+/// the other side of x_{k+1}'s surface, or carries no throughput. With
+/// in.defer_visibility the blocking test is left to the caller.
 /// |J| = |cos_y| ||x_k - x_{k+1}||^2 / (|cos_x| ||y_k - x_{k+1}||^2), cosines at x_{k+1}.
 ShiftStep reconnect(const ShiftStepInput& in);
 
