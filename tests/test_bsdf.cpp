@@ -668,3 +668,32 @@ TEST_CASE("material factory: MTL conventions of the shared scenes", "[bsdf]") {
         CHECK_THROWS_WITH(bsdf_from_desc(m, "glas"), Catch::Contains("roughdielectric") && Catch::Contains("'glas'"));
     }
 }
+
+TEST_CASE("bsdf: wo_side_only holds for the BSDFs that claim it and is claimed by no other", "[bsdf]") {
+    // Shifts reuse the base's values at a shared vertex when the BSDF claims
+    // that f and pdf depend on wo only through its side: check that claim on
+    // random direction triples, on both sides of the surface.
+    const std::vector<std::pair<std::shared_ptr<Bsdf>, bool>> bsdfs = {
+        {make_lambertian(make_constant_texture(Color(0.3f, 0.5f, 0.7f))), true},
+        {make_plastic(make_constant_texture(Color(0.4f)), Color(0.2f), 0.3f), false},
+        {make_rough_conductor(Color(0.9f, 0.6f, 0.3f), 0.2f), false},
+        {make_rough_dielectric(1.5f, 0.3f), false},
+        {make_mirror(Color(0.8f)), false},
+        {make_dielectric(1.5f), false},
+    };
+    Sampler rng(SampleKey{3, 0, 0, 0});
+    for (const auto& [bsdf, claims] : bsdfs) {
+        CHECK(bsdf->wo_side_only() == claims);
+        if (!claims) continue;
+        for (int i = 0; i < 2000; ++i) {
+            Vec3 wo1 = warp::square_to_uniform_hemisphere(rng.next2d());
+            Vec3 wo2 = warp::square_to_uniform_hemisphere(rng.next2d());
+            const Vec3 wi = warp::square_to_uniform_sphere(rng.next2d());
+            if (i % 2) wo1.z = -wo1.z, wo2.z = -wo2.z;  // both below
+            const Vec2 uv = rng.next2d();
+            const BsdfEval a = bsdf->eval_pdf(wo1, wi, uv), b = bsdf->eval_pdf(wo2, wi, uv);
+            REQUIRE(a.f == b.f);
+            REQUIRE(a.pdf == b.pdf);
+        }
+    }
+}

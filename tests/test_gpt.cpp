@@ -302,6 +302,8 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
             REQUIRE(same_surface(a.y.si, b.y.si));
             REQUIRE(a.step.kind == b.step.kind);
             REQUIRE(a.nee == b.nee);
+            // A blocked light connection (tested at once, or in a packet after the walks) carries no radiance.
+            REQUIRE(is_black(a.nee_radiance) == is_black(b.nee_radiance));
             REQUIRE(std::abs(a.step.jacobian - b.step.jacobian) <= 1e-3 * std::abs(b.step.jacobian));
         }
         return true;
