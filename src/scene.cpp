@@ -187,6 +187,23 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     return true;
 }
 
+namespace {
+// visible()'s segments are o + t v for t in [0, kSegmentEnd): shortened by a
+// relative 1e-4 so that the far end's surface is not hit.
+constexpr float kSegmentEnd = 1.f - 1e-4f;
+
+// Lanes b..b+3 of a packet's fields that every gdr query sets alike (no
+// motion blur, all geometry masks, no ids or flags).
+template <class RayN>
+inline void store_fixed_fields(RayN& r, int b) {
+    _mm_store_ps(r.time + b, _mm_setzero_ps());
+    _mm_store_si128(reinterpret_cast<__m128i*>(r.mask + b), _mm_set1_epi32(-1));
+    _mm_store_si128(reinterpret_cast<__m128i*>(r.id + b), _mm_setzero_si128());
+    _mm_store_si128(reinterpret_cast<__m128i*>(r.flags + b), _mm_setzero_si128());
+}
+
+}  // namespace
+
 // One Embree packet of N rays (RTCRayHitN of width N) with the coherent hint,
 // written into the callers' hit records.
 template <int N, class RayHitN, class IntersectN>
@@ -213,11 +230,8 @@ void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInterac
         _MM_TRANSPOSE4_PS(c0, c1, c2, c3);
         _mm_store_ps(rh.ray.dir_y + b, c0), _mm_store_ps(rh.ray.dir_z + b, c1);
         _mm_store_ps(rh.ray.tnear + b, c2), _mm_store_ps(rh.ray.tfar + b, c3);
-        const __m128i zero = _mm_setzero_si128(), ones = _mm_set1_epi32(-1);
-        _mm_store_ps(rh.ray.time + b, _mm_setzero_ps());
-        _mm_store_si128(reinterpret_cast<__m128i*>(rh.ray.mask + b), ones);
-        _mm_store_si128(reinterpret_cast<__m128i*>(rh.ray.id + b), zero);
-        _mm_store_si128(reinterpret_cast<__m128i*>(rh.ray.flags + b), zero);
+        store_fixed_fields(rh.ray, b);
+        const __m128i ones = _mm_set1_epi32(-1);
         _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.geomID + b), ones);  // RTC_INVALID_GEOMETRY_ID
         _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.primID + b), ones);
         _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.instID[0] + b), ones);
@@ -334,14 +348,11 @@ bool Scene::visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& 
     const Vec3 o = offset_ray_origin(p0, n0, d);
     const Vec3 v = offset_ray_origin(p1, n1, -d) - o;
     if (!(glm::dot(v, v) > 0.f)) return true;
-    // Embree needs no unit direction: the segment is o + t v for t in [0, 1),
-    // shortened by a relative 1e-4 so that the far end's surface is not hit.
-    // A shadow ray thus costs no square root and no division; G-PT casts
-    // about eight per sample.
-    constexpr float kEnd = 1.f - 1e-4f;
+    // Embree needs no unit direction (see kSegmentEnd): a shadow ray thus
+    // costs no square root and no division; G-PT casts about eight per sample.
     if (observer_) [[unlikely]]
-        observer_->on_occluded(Ray{o, v, 0.f, kEnd});
-    return !occluded_rtc(rtc_scene_, o, v, 0.f, kEnd);
+        observer_->on_occluded(Ray{o, v, 0.f, kSegmentEnd});
+    return !occluded_rtc(rtc_scene_, o, v, 0.f, kSegmentEnd);
 }
 
 namespace {
@@ -370,7 +381,6 @@ void Scene::visible_packet(const VisibilityBatch& q, bool* out, OccludedN occlud
     // visible()'s segments, four lanes at a time. Lane by lane (scalar loads
     // and stores), the packet's setup cost about what Embree saves by
     // tracing it as one.
-    constexpr float kEnd = 1.f - 1e-4f;
     const int n = q.n;
     alignas(32) RayN r;
     alignas(32) int valid[N];
@@ -393,17 +403,14 @@ void Scene::visible_packet(const VisibilityBatch& q, bool* out, OccludedN occlud
         _mm_store_si128(reinterpret_cast<__m128i*>(valid + b), _mm_castps_si128(_mm_and_ps(live, used)));
         _mm_store_ps(r.org_x + b, o[0]), _mm_store_ps(r.org_y + b, o[1]), _mm_store_ps(r.org_z + b, o[2]);
         _mm_store_ps(r.dir_x + b, v[0]), _mm_store_ps(r.dir_y + b, v[1]), _mm_store_ps(r.dir_z + b, v[2]);
-        _mm_store_ps(r.tnear + b, _mm_setzero_ps()), _mm_store_ps(r.tfar + b, _mm_set1_ps(kEnd));
-        _mm_store_ps(r.time + b, _mm_setzero_ps());
-        _mm_store_si128(reinterpret_cast<__m128i*>(r.mask + b), _mm_set1_epi32(-1));
-        _mm_store_si128(reinterpret_cast<__m128i*>(r.id + b), _mm_setzero_si128());
-        _mm_store_si128(reinterpret_cast<__m128i*>(r.flags + b), _mm_setzero_si128());
+        _mm_store_ps(r.tnear + b, _mm_setzero_ps()), _mm_store_ps(r.tfar + b, _mm_set1_ps(kSegmentEnd));
+        store_fixed_fields(r, b);
     }
     if (observer_) [[unlikely]]
         for (int i = 0; i < n; ++i)
             if (valid[i])
                 observer_->on_occluded(Ray{Vec3(r.org_x[i], r.org_y[i], r.org_z[i]),
-                                           Vec3(r.dir_x[i], r.dir_y[i], r.dir_z[i]), 0.f, kEnd});
+                                           Vec3(r.dir_x[i], r.dir_y[i], r.dir_z[i]), 0.f, kSegmentEnd});
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     // No coherent hint: for shadow packets it made Embree's kernel slower.

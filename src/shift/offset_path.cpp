@@ -28,11 +28,16 @@ struct DeferredVisibility {
     Target t[kMax];
     int n = 0;
 
-    bool full() const { return n == kMax; }
-    void add(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1, const Target& target) {
-        q[n / VisibilityBatch::kLanes].add(p0, n0, p1, n1);
-        t[n++] = target;
+    // Queues the segment p0 -> p1 for `target` and returns true, or, with no
+    // queue or a full one, returns whether it is unblocked, tested now.
+    static bool queued_or_visible(const Scene& scene, DeferredVisibility* queue, const Vec3& p0, const Vec3& n0,
+                                  const Vec3& p1, const Vec3& n1, const Target& target) {
+        if (!queue || queue->n == kMax) return scene.visible(p0, n0, p1, n1);
+        queue->q[queue->n / VisibilityBatch::kLanes].add(p0, n0, p1, n1);
+        queue->t[queue->n++] = target;
+        return true;
     }
+    // Traces the queued segments and applies the blocked ones; once, after the walks.
     void resolve(const Scene& scene) {
         bool vis[kMax];
         for (int b = 0; b * VisibilityBatch::kLanes < n; ++b) scene.visible8(q[b], vis + b * VisibilityBatch::kLanes);
@@ -50,8 +55,6 @@ struct DeferredVisibility {
                 y.merged_from = size_t(-1);
             }
         }
-        n = 0;
-        for (VisibilityBatch& b : q) b.n = 0;
     }
 };
 
@@ -65,7 +68,7 @@ inline bool same_side_values(const OffsetVertex& y, const PathVertex& x) {
 // The base's light sample at x_k, seen from the offset vertex y_k (of
 // `path`); its shadow segment is queued in `defer` if given and not full.
 void shift_light_connection(const Scene& scene, const ShiftConfig& config, const CameraPath& base, size_t k,
-                            OffsetPath& path, uint64_t& rays, DeferredVisibility* defer) {
+                            OffsetPath& path, DeferredVisibility* defer) {
     OffsetRecord& rec = path.v[k];
     const PathVertex& x = base.v[k];
     if (!x.nee.valid) return;
@@ -114,13 +117,9 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const Material& light_mat = scene.materials()[scene.mesh().material_ids[ls.prim]];
     const Color le = cos_zy > 0.0 ? light_mat.emission : Color(0.f);
     if (!is_black(le) && !is_black(rec.nee_f)) {
-        ++rays;
-        if (defer && !defer->full()) {
-            rec.nee_radiance = le;
-            defer->add(y.si.p, y.si.ng, ls.p, ls.n, {&path, k, false});
-        } else {
-            rec.nee_radiance = scene.visible(y.si.p, y.si.ng, ls.p, ls.n) ? le : Color(0.f);
-        }
+        ++path.rays;
+        const bool lit = DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, ls.p, ls.n, {&path, k, false});
+        rec.nee_radiance = lit ? le : Color(0.f);
     }
 }
 
@@ -239,7 +238,7 @@ namespace {
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                  OffsetPath& out, DeferredVisibility* defer) {
     for (size_t k = 0; k < base.size(); ++k) {
-        shift_light_connection(scene, config, base, k, out, out.rays, defer);
+        shift_light_connection(scene, config, base, k, out, defer);
         OffsetRecord& rec = out.v[k];
         const PathVertex& x = base.v[k];
         if (!x.scattered || k + 1 >= base.size()) return;
@@ -271,13 +270,11 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
-            if (s.visibility_deferred) {
-                if (defer && !defer->full()) {
-                    defer->add(y.si.p, y.si.ng, next.si.p, next.si.ng, {&out, k, true});
-                } else if (!scene.visible(y.si.p, y.si.ng, next.si.p, next.si.ng)) {
-                    s = ShiftStep{};  // Fail
-                    return;
-                }
+            if (s.visibility_deferred &&
+                !DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, next.si.p, next.si.ng,
+                                                       {&out, k, true})) {
+                s = ShiftStep{};  // Fail
+                return;
             }
             const Vec3 from = y.si.p;
             set_on_base(out.v.emplace_back().y, next, from);  // out.v may move: `y` and `s` are dead here
