@@ -3,6 +3,8 @@
 // weighted base and offset contributions give the primal image.
 #include "gdr/integrators/gpt.h"
 
+#include <tbb/parallel_for.h>
+
 #include "gdr/integrators/path_dims.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/trace.h"
@@ -325,47 +327,49 @@ protected:
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
         const int W = out.width(), H = out.height();
         Image primal(W, H, 3), primal_var(W, H, 3), dx(W, H, 3), dy(W, H, 3), dx_var(W, H, 3), dy_var(W, H, 3);
-        const Image& self = acc.mean_of("self");
-        const Image& self_v = acc.variance_of("self");
-        const Image* splat[kDirs];
-        const Image* splat_v[kDirs];
-        for (int d = 0; d < kDirs; ++d) splat[d] = &acc.mean_of(kSplatSlot[d]), splat_v[d] = &acc.variance_of(kSplatSlot[d]);
-        const Image &gpx = acc.mean_of("g+x"), &gmx = acc.mean_of("g-x"), &gpy = acc.mean_of("g+y"), &gmy = acc.mean_of("g-y");
-        const Image &vpx = acc.variance_of("g+x"), &vmx = acc.variance_of("g-x"), &vpy = acc.variance_of("g+y"),
-                    &vmy = acc.variance_of("g-y");
-        for (int y = 0; y < H; ++y)
+        const int self = acc.slot("self");
+        int splat[kDirs], grad[kDirs];
+        for (int d = 0; d < kDirs; ++d) splat[d] = acc.slot(kSplatSlot[d]), grad[d] = acc.slot(kGradSlot[d]);
+        const int gpx = grad[0], gmx = grad[1], gpy = grad[2], gmy = grad[3];
+        // Straight from the sums: the splat and one-sided gradient slots feed
+        // only these layers, so they never become images of their own.
+        tbb::parallel_for(0, H, [&](int y) {
             for (int x = 0; x < W; ++x) {
-                Color p = self.rgb(x, y), pv = self_v.rgb(x, y);
+                Color p = acc.mean_rgb(self, x, y), pv = acc.variance_rgb(self, x, y);
                 // Each neighbour q = (x,y) - step splatted its offset towards (x,y).
                 for (int d = 0; d < kDirs; ++d) {
                     const int qx = x - kDx[d], qy = y - kDy[d];
                     if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-                    p += splat[d]->rgb(qx, qy);
-                    pv += splat_v[d]->rgb(qx, qy);
+                    p += acc.mean_rgb(splat[d], qx, qy);
+                    pv += acc.variance_rgb(splat[d], qx, qy);
                 }
                 primal.set_rgb(x, y, p);
                 primal_var.set_rgb(x, y, pv);
                 // dx(x) = I(x+1) - I(x): from x shifted right, minus from x+1 shifted left.
                 if (x + 1 < W) {
-                    dx.set_rgb(x, y, gpx.rgb(x, y) - gmx.rgb(x + 1, y));
-                    dx_var.set_rgb(x, y, vpx.rgb(x, y) + vmx.rgb(x + 1, y));
+                    dx.set_rgb(x, y, acc.mean_rgb(gpx, x, y) - acc.mean_rgb(gmx, x + 1, y));
+                    dx_var.set_rgb(x, y, acc.variance_rgb(gpx, x, y) + acc.variance_rgb(gmx, x + 1, y));
                 }
                 if (y + 1 < H) {
-                    dy.set_rgb(x, y, gpy.rgb(x, y) - gmy.rgb(x, y + 1));
-                    dy_var.set_rgb(x, y, vpy.rgb(x, y) + vmy.rgb(x, y + 1));
+                    dy.set_rgb(x, y, acc.mean_rgb(gpy, x, y) - acc.mean_rgb(gmy, x, y + 1));
+                    dy_var.set_rgb(x, y, acc.variance_rgb(gpy, x, y) + acc.variance_rgb(gmy, x, y + 1));
                 }
             }
-        const Image& direct = acc.mean_of("direct");
+        });
+        std::vector<Accumulated::Want> wanted{{"direct"}, {"albedo"}, {"normal"}, {"depth"}};
+        if (!primal_both_) wanted.push_back({"base"}), wanted.push_back({"base", true});
+        std::vector<Image> im = acc.images(wanted);
+        const Image& direct = im[0];
         Image color(W, H, 3);
-        const Image& chosen = primal_both_ ? primal : acc.mean_of("base");
+        const Image& chosen = primal_both_ ? primal : im[4];
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) color.set_rgb(x, y, chosen.rgb(x, y) + direct.rgb(x, y));
         out.set("color", std::move(color));
-        out.set("primal", chosen);
+        out.set("primal", primal_both_ ? std::move(primal) : std::move(im[4]));
         out.set("dx", std::move(dx));
         out.set("dy", std::move(dy));
-        out.set("direct", direct);
-        out.set("primal_variance", primal_both_ ? primal_var : acc.variance_of("base"));
+        out.set("direct", std::move(im[0]));
+        out.set("primal_variance", primal_both_ ? std::move(primal_var) : std::move(im[5]));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
         // The reconstructions, each with the directly visible emitters added back.
@@ -375,9 +379,9 @@ protected:
         rp.set("alpha", alpha_);
         if (solve_l1_) out.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
         if (solve_l2_) out.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
-        out.set("albedo", acc.mean_of("albedo"));
-        out.set("normal", acc.mean_of("normal"));
-        out.set("depth", acc.mean_of("depth"));
+        out.set("albedo", std::move(im[1]));
+        out.set("normal", std::move(im[2]));
+        out.set("depth", std::move(im[3]));
     }
 
 private:

@@ -41,11 +41,12 @@ protected:
     }
 
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
-        out.set("color", acc.mean_of("color"));
-        out.set("albedo", acc.mean_of("albedo"));
-        out.set("normal", acc.mean_of("normal"));
-        out.set("depth", acc.mean_of("depth"));
-        out.set("variance", acc.variance_of("color"));
+        std::vector<Image> im = acc.images({{"color"}, {"albedo"}, {"normal"}, {"depth"}, {"color", true}});
+        out.set("color", std::move(im[0]));
+        out.set("albedo", std::move(im[1]));
+        out.set("normal", std::move(im[2]));
+        out.set("depth", std::move(im[3]));
+        out.set("variance", std::move(im[4]));
     }
 
 private:

@@ -70,16 +70,32 @@ size_t TiledIntegrator::release_buffers() {
     return bytes;
 }
 
-const Image& Accumulated::mean_of(const std::string& name) const {
+int Accumulated::slot(const std::string& name) const {
     for (size_t i = 0; i < specs.size(); ++i)
-        if (specs[i].name == name) return mean[i];
+        if (specs[i].name == name) return int(i);
     throw ParameterError("no accumulated slot '" + name + "'");
 }
 
-const Image& Accumulated::variance_of(const std::string& name) const {
-    for (size_t i = 0; i < specs.size(); ++i)
-        if (specs[i].name == name) return variance[i];
-    throw ParameterError("no accumulated slot '" + name + "'");
+std::vector<Image> Accumulated::images(const std::vector<Want>& wanted) const {
+    std::vector<int> slots;
+    std::vector<Image> out;
+    for (const Want& w : wanted) {
+        const int s = slot(w.slot);
+        if (w.variance && !specs[s].variance)
+            throw ParameterError("accumulated slot '" + w.slot + "' tracks no variance");
+        slots.push_back(s);
+        out.emplace_back(width, height, specs[s].channels);
+    }
+    // One pass: each pixel's sums are read while in cache, whatever the number of images.
+    tbb::parallel_for(0, height, [&](int y) {
+        for (int x = 0; x < width; ++x)
+            for (size_t i = 0; i < wanted.size(); ++i) {
+                const int s = slots[i];
+                for (int c = 0; c < specs[s].channels; ++c)
+                    out[i].at(x, y, c) = wanted[i].variance ? variance(s, x, y, c) : mean(s, x, y, c);
+            }
+    });
+    return out;
 }
 
 RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st, FrameBuffer& out,
@@ -213,36 +229,18 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         }
     }
 
+    // Means and variances are read from the sums by finalize() itself: a slot
+    // that only feeds a combined layer (G-PT's splats and one-sided
+    // gradients) then costs no image of its own.
     Accumulated acc;
     acc.specs = specs;
     acc.spp = done;
-    for (size_t s = 0; s < specs.size(); ++s) {
-        acc.mean.emplace_back(W, H, specs[s].channels);
-        acc.variance.emplace_back();
-        if (specs[s].variance) acc.variance.back() = Image(W, H, specs[s].channels);
-    }
-    // Means and variances per row in parallel (each row writes only its own pixels).
-    arena.execute([&] {
-        tbb::parallel_for(0, H, [&](int y) {
-            for (size_t p = size_t(y) * W; p < size_t(y + 1) * W; ++p)
-                for (size_t s = 0; s < specs.size(); ++s) {
-                    const int ch = specs[s].channels;
-                    float* m = acc.mean[s].data() + p * ch;
-                    float* var = specs[s].variance ? acc.variance[s].data() + p * ch : nullptr;
-                    for (int c = 0; c < ch; ++c) {
-                        const double a = sum[p * stride + offset[s] + c];
-                        const double mean = a / double(done);
-                        m[c] = float(mean);
-                        if (var) {
-                            const double b = sum2[p * var_stride + var_offset[s] + c];
-                            var[c] = done > 1 ? float(std::max(0.0, (b - a * mean) / double(done - 1))) : 0.f;
-                        }
-                    }
-                }
-        });
-    });
+    acc.width = W, acc.height = H;
+    acc.sum_ = sum.data, acc.sum2_ = sum2.data;
+    acc.stride_ = stride, acc.var_stride_ = var_stride;
+    acc.offset_ = offset, acc.var_offset_ = var_offset;
     out = FrameBuffer(W, H);
-    finalize(acc, out);
+    arena.execute([&] { finalize(acc, out); });
     out.add("spp", 1);
     std::fill(out.get("spp").values().begin(), out.get("spp").values().end(), float(done));
     out.metadata()["spp"] = std::to_string(done);
@@ -259,10 +257,14 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
 }
 
 void TiledIntegrator::finalize(const Accumulated& acc, FrameBuffer& out) const {
-    for (size_t s = 0; s < acc.specs.size(); ++s) {
-        out.set(acc.specs[s].name, acc.mean[s]);
-        if (acc.specs[s].variance) out.set(acc.specs[s].name + "_variance", acc.variance[s]);
+    std::vector<Accumulated::Want> wanted;
+    for (const SlotSpec& spec : acc.specs) {
+        wanted.push_back({spec.name, false});
+        if (spec.variance) wanted.push_back({spec.name, true});
     }
+    std::vector<Image> images = acc.images(wanted);
+    for (size_t i = 0; i < wanted.size(); ++i)
+        out.set(wanted[i].variance ? wanted[i].slot + "_variance" : wanted[i].slot, std::move(images[i]));
 }
 
 }  // namespace gdr

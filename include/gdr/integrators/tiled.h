@@ -5,6 +5,7 @@
 // for any thread count (neighbour splats are gathered in finalize()).
 #pragma once
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,16 +22,58 @@ struct SlotSpec {
     bool variance = false;  ///< Also track the per-sample variance.
 };
 
-/// Per-pixel means (and per-sample variances) of every slot after a render.
-struct Accumulated {
-    std::vector<SlotSpec> specs;     ///< As declared by the integrator.
-    std::vector<Image> mean;         ///< Mean per slot.
-    std::vector<Image> variance;     ///< Per-sample variance per slot (empty image if not tracked).
-    long long spp = 0;               ///< Samples per pixel.
+/// The per-pixel sums of a finished render, read as means and per-sample
+/// variances of its slots. It reads the render's double-precision sums in
+/// place: finalize() takes what it needs straight from them, so a slot that
+/// only feeds a combined layer never becomes an image of its own. Valid only
+/// during finalize().
+class Accumulated {
+public:
+    std::vector<SlotSpec> specs;  ///< As declared by the integrator.
+    long long spp = 0;            ///< Samples per pixel.
+    int width = 0;                ///< Columns.
+    int height = 0;               ///< Rows.
+
+    /// Index of a slot by name; throws ParameterError naming it if absent.
+    int slot(const std::string& name) const;
+    /// Mean of channel `c` of slot `s` at pixel (x, y), in the slot's units.
+    float mean(int s, int x, int y, int c) const {
+        return float(sum_[pixel(x, y) * stride_ + offset_[s] + c] / double(spp));
+    }
+    /// Per-sample variance of channel `c` of slot `s` at (x, y), in the slot's
+    /// units squared; the slot must track a variance.
+    float variance(int s, int x, int y, int c) const {
+        const size_t p = pixel(x, y);
+        const double a = sum_[p * stride_ + offset_[s] + c];
+        const double b = sum2_[p * var_stride_ + var_offset_[s] + c];
+        return spp > 1 ? float(std::max(0.0, (b - a * (a / double(spp))) / double(spp - 1))) : 0.f;
+    }
+    /// Mean of the first three channels of slot `s` at (x, y).
+    Color mean_rgb(int s, int x, int y) const { return {mean(s, x, y, 0), mean(s, x, y, 1), mean(s, x, y, 2)}; }
+    /// Per-sample variance of the first three channels of slot `s` at (x, y).
+    Color variance_rgb(int s, int x, int y) const {
+        return {variance(s, x, y, 0), variance(s, x, y, 1), variance(s, x, y, 2)};
+    }
+    /// One image images() computes: a slot's mean, or its per-sample variance.
+    struct Want {
+        std::string slot;       ///< Slot name.
+        bool variance = false;  ///< The variance (the slot must track one) instead of the mean.
+    };
+    /// The wanted images, in order, computed in one parallel pass over the sums;
+    /// throws ParameterError naming an unknown slot or one without a variance.
+    std::vector<Image> images(const std::vector<Want>& wanted) const;
     /// The mean image of a slot by name.
-    const Image& mean_of(const std::string& name) const;
-    /// The variance image of a slot by name.
-    const Image& variance_of(const std::string& name) const;
+    Image mean_of(const std::string& name) const { return std::move(images({{name, false}})[0]); }
+    /// The per-sample variance image of a slot by name.
+    Image variance_of(const std::string& name) const { return std::move(images({{name, true}})[0]); }
+
+private:
+    friend class TiledIntegrator;
+    size_t pixel(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
+    const double* sum_ = nullptr;   // per pixel: `stride_` sums, slots in order
+    const double* sum2_ = nullptr;  // per pixel: `var_stride_` squared sums of the slots with a variance
+    int stride_ = 0, var_stride_ = 0;
+    std::vector<int> offset_, var_offset_;  // per slot: first channel in the sums / the squared sums (-1: none)
 };
 
 /// Integrator skeleton: subclasses declare slots and implement sample().
@@ -58,7 +101,8 @@ protected:
     /// (zero-initialised); adds the rays it cast to `rays`.
     virtual void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const = 0;
     /// Turns accumulated slots into output layers; the default writes each slot
-    /// as a layer of its name and its variance as "<name>_variance".
+    /// as a layer of its name and its variance as "<name>_variance". Runs in
+    /// the render's thread arena, so its parallel loops keep to its threads.
     virtual void finalize(const Accumulated& acc, FrameBuffer& out) const;
     /// Called once before the first sample (e.g. to precompute per-scene data).
     virtual void prepare(const Scene& scene) {}
