@@ -96,13 +96,29 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     // so that the inverse shift is defined too.
     const ShiftStepInput in{scene, config, base, k, y};
     if (!shift::base_connectable(in, k) || !shift::offset_connectable(in)) return;
+    if (!(x.nee.pdf_w > 0.0)) return;  // the base cannot sample this light point (or sits on it)
     const Vec3d pz(ls.p), nz(ls.n);
-    const Vec3d dy = pz - Vec3d(y.si.p), dx = pz - Vec3d(x.si.p);
-    const double ly2 = glm::dot(dy, dy), lx2 = glm::dot(dx, dx);
-    if (!(ly2 > 0.0) || !(lx2 > 0.0)) return;
-    // One reciprocal and one division where there were nine divisions.
-    const double ly = std::sqrt(ly2), lx = std::sqrt(lx2), inv_ly = 1.0 / ly;
-    const double dot_y = -glm::dot(nz, dy), dot_x = -glm::dot(nz, dx);  // cosines at the light times distances
+    const Vec3d dy = pz - Vec3d(y.si.p);
+    const double ly2 = glm::dot(dy, dy);
+    const double dot_y = -glm::dot(nz, dy);  // cosine at the light times the distance
+    if (!(ly2 > 0.0)) return;
+    const double ly = std::sqrt(ly2), pa = double(ls.pdf_a);
+    // The light point is shared in area measure, so d omega_y / d omega_x is
+    // the ratio of the two solid-angle densities of sampling it (pdf_a
+    // cancels): p_x / p_y with p_y = pa ly^3 / |dot_y|. One division gives
+    // both 1/ly and 1/p_y, where separate ones and a second square root (for
+    // the base's distance, the same for all four offsets) were on the
+    // critical path.
+    double inv_ly, pdf_y, inv_pdf_y;
+    const double m = pa * ly2 * ly, q = m * std::abs(dot_y);
+    if (q > 0.0 && std::isfinite(q)) {
+        const double inv_q = 1.0 / q;  // 1 / (pa ly^3 |dot_y|)
+        inv_ly = inv_q * pa * ly2 * std::abs(dot_y);
+        inv_pdf_y = inv_q * dot_y * dot_y;
+        pdf_y = m * m * inv_q;
+    } else {
+        inv_ly = 1.0 / ly, pdf_y = 0.0, inv_pdf_y = 0.0;  // grazing or unsampleable: no density, no Jacobian
+    }
     const double cos_zy = dot_y * inv_ly;
     rec.nee = true;
     const Vec3 wi_world = Vec3(dy * inv_ly);
@@ -111,9 +127,8 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
     rec.nee_f = fe.f;
     rec.nee_pdf_bsdf = fe.pdf;
-    rec.nee_pdf_light_w = pdf_a_to_w(ls.pdf_a, ly, cos_zy);
-    // (|cos_zy| / ly2) / (|cos_zx| / lx2) with cos_zx = dot_x / lx.
-    rec.nee_jacobian = std::abs(dot_x) > 0.0 ? std::abs(cos_zy) * (lx2 * lx) / (std::abs(dot_x) * ly2) : 0.0;
+    rec.nee_pdf_light_w = pdf_y;
+    rec.nee_jacobian = x.nee.pdf_w * inv_pdf_y;
     const Material& light_mat = scene.materials()[scene.mesh().material_ids[ls.prim]];
     const Color le = cos_zy > 0.0 ? light_mat.emission : Color(0.f);
     if (!is_black(le) && !is_black(rec.nee_f)) {
