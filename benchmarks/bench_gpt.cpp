@@ -5,13 +5,17 @@
 //     Whole renders include per-render fixed costs (allocating and zeroing the
 //     accumulators, ~160 MB for G-PT at 512x512, and finalisation); the
 //     marginal cost differences a short and a long render of each method so
-//     that only the cost of the extra samples remains.
+//     that only the cost of the extra samples remains; the sampling cost takes
+//     the process CPU time between the first and the last finished tile of the
+//     long renders, which leaves out set-up and finalisation without
+//     differencing two noisy figures.
 //  2. Variance of the sampled gradients dx against the variance of finite
 //     differences of the PT image, both at equal time (per-sample variances
 //     scaled by the samples each method affords in the same time).
 // Usage: bench_gpt [SCENE.json] [repeats]
 #include <algorithm>
 #include <cstdio>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -53,21 +57,36 @@ int main(int argc, char** argv) {
     Params gp;
     gp.set("reconstruct", std::string("none"));
     auto gpt = integrator_registry().create("gpt", gp);
-    std::vector<double> pt_rate, gpt_rate, cpu_cost, marginal_wall, marginal_cpu;
+    std::vector<double> pt_rate, gpt_rate, cpu_cost, marginal_wall, marginal_cpu, sampling_cpu;
     FrameBuffer pt_fb, gpt_fb, scratch;
-    // A render with its wall-clock figures and the CPU seconds it used.
+    // A render with its wall-clock figures, the CPU seconds it used, and the
+    // CPU seconds per sample while it was sampling.
     struct Timed {
         RenderStats stats;
         double cpu = 0.0;
+        double sampling_cpu_per_sample = 0.0;
     };
     const auto timed = [&](Integrator& integ, long long spp, uint64_t seed, FrameBuffer& fb) {
         RenderSettings st;
         st.spp = spp;
         st.seed = seed;
+        // Process CPU time at the first and the last finished tile: what lies
+        // between is sampling only, without the render's set-up and finalisation.
+        std::mutex m;
+        double cpu_first = -1.0, cpu_last = 0.0;
+        uint64_t samples_first = 0, samples_last = 0;
+        const auto progress = [&](const Progress& p) {
+            const double c = bench::cpu_seconds();
+            std::lock_guard<std::mutex> lock(m);
+            if (cpu_first < 0.0) cpu_first = c, samples_first = p.samples;
+            if (p.samples > samples_last) cpu_last = c, samples_last = p.samples;
+        };
         const double c0 = bench::cpu_seconds();
         Timed t;
-        t.stats = integ.render(scene, st, fb);
+        t.stats = integ.render(scene, st, fb, progress);
         t.cpu = bench::cpu_seconds() - c0;
+        if (samples_last > samples_first)
+            t.sampling_cpu_per_sample = (cpu_last - cpu_first) / double(samples_last - samples_first);
         return t;
     };
     for (int r = 0; r < repeats; ++r) {
@@ -82,10 +101,12 @@ int main(int argc, char** argv) {
         const double pt_extra = double(a.samples - pa.stats.samples), gpt_extra = double(b.samples - ga.stats.samples);
         marginal_wall.push_back(((b.seconds - ga.stats.seconds) / gpt_extra) / ((a.seconds - pa.stats.seconds) / pt_extra));
         marginal_cpu.push_back(((tb.cpu - ga.cpu) / gpt_extra) / ((ta.cpu - pa.cpu) / pt_extra));
+        sampling_cpu.push_back(tb.sampling_cpu_per_sample / ta.sampling_cpu_per_sample);
         std::printf("run %d: pt %.3f M samples/s (%.2f M rays/s), gpt %.3f M samples/s (%.2f M rays/s), "
-                    "CPU time per sample gpt/pt %.2f, marginal %.2f wall %.2f CPU\n",
+                    "CPU time per sample gpt/pt %.2f, marginal %.2f wall %.2f CPU, sampling %.2f CPU\n",
                     r, pt_rate.back() * 1e-6, double(a.rays) / a.seconds * 1e-6, gpt_rate.back() * 1e-6,
-                    double(b.rays) / b.seconds * 1e-6, cpu_cost.back(), marginal_wall.back(), marginal_cpu.back());
+                    double(b.rays) / b.seconds * 1e-6, cpu_cost.back(), marginal_wall.back(), marginal_cpu.back(),
+                    sampling_cpu.back());
     }
     const double cost = median(pt_rate) / median(gpt_rate);
     std::printf("\n%s (%dx%d)\n", path.c_str(), scene.camera().width(), scene.camera().height());
@@ -95,8 +116,11 @@ int main(int argc, char** argv) {
                 cost, median(cpu_cost), repeats);
     std::printf("marginal cost of a sample, per-render fixed costs differenced out: %.2fx wall-clock, %.2fx CPU time\n",
                 median(marginal_wall), median(marginal_cpu));
-    std::printf("quartiles of the runs: whole renders %s CPU time, marginal %s CPU time\n",
-                quartile_range(cpu_cost).c_str(), quartile_range(marginal_cpu).c_str());
+    std::printf("while sampling (CPU time from the first to the last finished tile of the long renders): %.2fx\n",
+                median(sampling_cpu));
+    std::printf("quartiles of the runs: whole renders %s CPU time, marginal %s CPU time, sampling %s CPU time\n",
+                quartile_range(cpu_cost).c_str(), quartile_range(marginal_cpu).c_str(),
+                quartile_range(sampling_cpu).c_str());
 
     // Equal time: per-sample variances divided by the samples each affords, PT getting `cost` times more.
     const Image& vpt = pt_fb.get("variance");
