@@ -19,11 +19,14 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     const Vec3d dx = Vec3d(x.si.p) - pn, dy = Vec3d(y.p) - pn;
     const double lx2 = glm::dot(dx, dx), ly2 = glm::dot(dy, dy);
     if (!(lx2 > 0.0) || !(ly2 > 0.0)) return s;
-    // One reciprocal and one division (the Jacobian's) where there were six divisions.
-    const double lx = std::sqrt(lx2), inv_ly = 1.0 / std::sqrt(ly2);
-    const double dot_x = glm::dot(dx, ng), cos_y = glm::dot(dy, ng) * inv_ly;  // dot_x = cos_x * lx
+    const double lx = std::sqrt(lx2), ly = std::sqrt(ly2);
+    const double dot_x = glm::dot(dx, ng), dot_y = glm::dot(dy, ng);  // cosines at `next` times the distances
     // Arriving from the other side of the surface would be another kind of path.
-    if (dot_x * cos_y <= 0.0) return s;
+    if (!(dot_x * dot_y > 0.0)) return s;
+    // The Jacobian |cos_y| lx^2 / (|cos_x| ly^2) = |dot_y| lx^3 / (|dot_x| ly^3)
+    // and 1/ly from one division (there were six, then two).
+    const double inv_d = 1.0 / (std::abs(dot_x) * ly2 * ly);
+    const double inv_ly = std::abs(dot_x) * ly2 * inv_d;
     const Vec3 wi_world = Vec3(-dy * inv_ly);
     const Vec3 wi = y.frame.to_local(wi_world);
     const Bsdf& bsdf = *y.material->bsdf;
@@ -37,7 +40,7 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     s.wi = wi;
     s.f = fe.f;
     s.pdf = fe.pdf;
-    s.jacobian = std::abs(cos_y) * (lx2 * lx) / (std::abs(dot_x) * ly2);  // |cos_y| lx2 / (|cos_x| ly2)
+    s.jacobian = std::abs(dot_y) * (lx2 * lx) * inv_d;
     s.delta = false;
     return s;
 }
