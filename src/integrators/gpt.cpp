@@ -90,8 +90,13 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
     }
 }
 
-PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& t, const OffsetPath* y,
-                           const GradientMis& mis, bool closed_form) {
+namespace {
+
+// evaluate_pair() with `closed_form` fixed at compile time: the rendering
+// loop's form carries none of the vertex-by-vertex walk's tests.
+template <bool closed_form>
+PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const BaseTerms& t, const OffsetPath* y,
+                              const GradientMis& mis) {
     PairEstimate e;
     Color beta_y(1.f);
     double r = 1.0, r_prev = 1.0;  // offset prefix density / base prefix density (through k-1, k-2)
@@ -103,7 +108,9 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
         const bool has_y = y_alive && k < m;
         // In the shared suffix the offset is the base with its own throughput and prefix density.
         const bool merged = has_y && y->merged(k);
-        const bool first_merged = closed_form && merged && k == y->merged_from;
+        // In closed form the walk stops at the first merged vertex, so there
+        // every merged vertex is the first one.
+        const bool first_merged = closed_form && merged;
         if (closed_form && !has_y) {
             // No offset from here on (none, failed or ended): every later term has
             // the plain path-tracing weight and no offset share, so the base's
@@ -122,7 +129,7 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
             double b_b = 0.0, b_l = 0.0;
             if (merged) {
                 cy = beta_y * X.emitted;
-                if (k == y->merged_from) {
+                if (closed_form || k == y->merged_from) {
                     const ShiftStep& S = y->v[k - 1].step;  // left the shared vertex with its own incoming direction
                     b_b = double(S.pdf) * S.jacobian;
                     b_l = T.emit_pdf_light * S.jacobian;
@@ -160,7 +167,7 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
         if (T.nee_pdf_light > 0.0) {
             Color cy(0.f);
             double b_l = 0.0, b_b = 0.0;
-            if (merged) {
+            if (!closed_form && merged) {
                 cy = beta_y * T.nee_unit;
                 b_l = T.nee_pdf_light, b_b = T.nee_pdf_bsdf;
             } else if (has_y && y->v[k].nee) {
@@ -175,7 +182,7 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
 
         if (!X.scattered) break;
         r_prev = r;
-        if (merged) {
+        if (!closed_form && merged) {
             beta_y *= scatter_weight(X);
         } else if (has_y) {
             const ShiftStep& S = y->v[k].step;
@@ -189,6 +196,13 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
         }
     }
     return e;
+}
+
+}  // namespace
+
+PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& t, const OffsetPath* y,
+                           const GradientMis& mis, bool closed_form) {
+    return closed_form ? evaluate_pair_as<true>(scene, x, t, y, mis) : evaluate_pair_as<false>(scene, x, t, y, mis);
 }
 
 namespace {
