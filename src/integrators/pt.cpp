@@ -74,7 +74,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
         const float u_lobe = depth == 1 ? sampler.at(dims::vertex(depth) + dims::kBsdfLobe) : u_lobe_next;
         u_light_next = sampler.at(dims::vertex(depth + 1) + dims::kLightSelect);
         u_lobe_next = sampler.at(dims::vertex(depth + 1) + dims::kBsdfLobe);
-        if (opt.nee) {
+        if (opt.nee && scene.light_prefetch_pays()) {
             scene.prefetch_light(u_light);
             scene.prefetch_light_table(u_light_next);
         }

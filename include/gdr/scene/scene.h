@@ -159,6 +159,10 @@ public:
     float light_pdf_a(uint32_t prim) const;
     /// True if the scene has any emitter.
     bool has_lights() const { return !emitters_.empty(); }
+    /// True if light-sample prefetching pays: the emitters and their alias
+    /// table exceed what stays in the first-level cache. With a few emitters
+    /// the prefetches only cost instructions.
+    bool light_prefetch_pays() const { return light_prefetch_pays_; }
 
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
@@ -217,6 +221,7 @@ private:
     std::vector<uint32_t> hit_info_;        // per triangle: material | kSmooth | kHasUv
     std::vector<Emitter> emitters_;         // emitting triangles, for sample_light()
     std::vector<AliasBucket> light_alias_;  // power-proportional emitter selection in O(1)
+    bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;
