@@ -18,6 +18,13 @@ SurfaceInteraction* begin_camera_path(const Scene& scene, const Vec2& film, Came
 void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptions& opt, CameraPath& path, Ray ray,
                           bool hit) {
     Color beta(1.f);
+    // Each vertex's emitter and lobe numbers (one hash) are drawn before the
+    // ray that reaches it, so that the emitter they select starts loading
+    // during the traversal: on scenes with many emitters the light sample
+    // then does not wait for memory.
+    float u_light = sampler.at(dims::vertex(1) + dims::kLightSelect);
+    float u_lobe = sampler.at(dims::vertex(1) + dims::kBsdfLobe);
+    if (scene.light_prefetch_pays()) scene.prefetch_light(u_light);  // the first hit is known: as early as it gets
     for (int depth = 1;; ++depth) {
         if (!hit) {
             path.v.pop_back();
@@ -30,9 +37,8 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         const bool last = opt.max_depth > 0 && depth >= opt.max_depth;
 
         const uint32_t block = dims::vertex(depth);
-        const float u_light = sampler.at(block + dims::kLightSelect);
         const Vec2 u_point(sampler.at(block + dims::kLightPoint), sampler.at(block + dims::kLightPoint + 1));
-        x.u_lobe = sampler.at(block + dims::kBsdfLobe);
+        x.u_lobe = u_lobe;
         x.u_dir = Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1));
         // Numbers are drawn only where they are read: roulette from rr_depth
         // on, classification only for probabilistic classification.
@@ -70,6 +76,9 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         }
         ray = spawn_ray(x.si, x.si.frame.to_world(bs->wi));
         ++path.rays;
+        u_light = sampler.at(dims::vertex(depth + 1) + dims::kLightSelect);
+        u_lobe = sampler.at(dims::vertex(depth + 1) + dims::kBsdfLobe);
+        if (scene.light_prefetch_pays()) scene.prefetch_light(u_light);
         hit = scene.intersect(ray, path.v.emplace_back().si);  // invalidates `x`
     }
 }
