@@ -354,6 +354,58 @@ TEST_CASE("tiled integrators: NaN samples are dropped, counted and located", "[p
     CHECK(fb.metadata().at("spp") == "5");
 }
 
+namespace {
+// Writes numbers of its own sampler: a slot "a" (3 channels, with variance)
+// and a slot "b" (1 channel, without). The test recomputes every sample.
+class SamplerEcho final : public TiledIntegrator {
+public:
+    std::string describe() const override { return ""; }
+    static void values(Sampler& s, float v[4]) {
+        for (int c = 0; c < 3; ++c) v[c] = 10.f * s.next1d() - 2.f;
+        v[3] = s.next1d();
+    }
+
+protected:
+    std::vector<SlotSpec> slots() const override { return {{"a", 3, true}, {"b", 1, false}}; }
+    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const override {
+        values(sampler, out);
+        ++rays;
+    }
+};
+}  // namespace
+
+TEST_CASE("tiled integrators: layers are the samples' means and unbiased per-sample variances", "[pt][tiled]") {
+    const SceneFile sf = load_scene_file(kScenes + "emitter-wall/scene.json");
+    SamplerEcho integ;
+    RenderSettings st;
+    st.spp = 37;  // more than one pass of 16
+    st.seed = 5;
+    FrameBuffer fb;
+    integ.render(*sf.scene, st, fb, {});
+    REQUIRE(fb.has("a"));
+    REQUIRE(fb.has("a_variance"));
+    REQUIRE(fb.has("b"));
+    CHECK(!fb.has("b_variance"));
+    for (int y = 0; y < fb.height(); ++y)
+        for (int x = 0; x < fb.width(); ++x) {
+            double sum[4] = {}, sum2[3] = {};
+            for (int i = 0; i < st.spp; ++i) {
+                Sampler s(SampleKey{st.seed, uint32_t(x), uint32_t(y), uint32_t(i)});
+                float v[4];
+                SamplerEcho::values(s, v);
+                for (int c = 0; c < 4; ++c) sum[c] += v[c];
+                for (int c = 0; c < 3; ++c) sum2[c] += double(v[c]) * v[c];
+            }
+            const double n = double(st.spp);
+            for (int c = 0; c < 3; ++c) {
+                const double mean = sum[c] / n, var = (sum2[c] - n * mean * mean) / (n - 1.0);
+                REQUIRE(fb.get("a").at(x, y, c) == Approx(mean).epsilon(1e-6));
+                REQUIRE(fb.get("a_variance").at(x, y, c) == Approx(var).epsilon(1e-5));
+            }
+            REQUIRE(fb.get("b").at(x, y) == Approx(sum[3] / n).epsilon(1e-6));
+        }
+}
+
 TEST_CASE("tiled integrators: time budgets and cancellation end on whole passes", "[pt][tiled]") {
     const SceneFile sf = load_scene_file(kScenes + "emitter-wall/scene.json");
     auto pt = integrator_registry().create("pt", Params());
