@@ -170,9 +170,11 @@ void check_vertex_lines(const std::string& path) {
 }
 }  // namespace
 
+// `mtl`: a material library read instead of the OBJ's own `mtllib` ("" = the
+// OBJ's own); its textures are then relative to it.
 void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
-                   std::set<std::string>* used_overrides) {
+                   std::set<std::string>* used_overrides, const std::string& mtl = "") {
     if (!fs::exists(path)) throw InputError(path + ": file not found");
     check_vertex_lines(path);
     tinyobj::ObjReaderConfig cfg;
@@ -180,7 +182,23 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     cfg.vertex_color = false;
     cfg.mtl_search_path = fs::path(path).parent_path().string();
     tinyobj::ObjReader reader;
-    if (!reader.ParseFromFile(path, cfg)) {
+    const auto read_text = [](const std::string& file) {
+        std::ifstream in(file, std::ios::binary);
+        if (!in) throw InputError(file + ": cannot read");
+        return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    };
+    if (!mtl.empty() && !fs::exists(mtl)) throw InputError(scene_file + ": meshes[].mtl: " + mtl + ": file not found");
+    // With a library of its own the OBJ is parsed from memory: tinyobjloader
+    // then reads every `mtllib` from the given text instead of a file.
+    bool parsed;
+    if (mtl.empty()) {
+        parsed = reader.ParseFromFile(path, cfg);
+    } else {
+        std::string obj = read_text(path);
+        if (obj.find("mtllib") == std::string::npos) obj = "mtllib given\n" + obj;  // an OBJ without one gets it too
+        parsed = reader.ParseFromString(obj, read_text(mtl), cfg);
+    }
+    if (!parsed) {
         std::string e = reader.Error();
         while (!e.empty() && (e.back() == '\n' || e.back() == '\r')) e.pop_back();
         throw InputError(path + ": cannot parse OBJ: " + (e.empty() ? "unknown error" : e));
@@ -195,7 +213,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     const auto& mtls = reader.GetMaterials();
 
     const uint32_t base = uint32_t(materials.size());
-    const fs::path dir = fs::path(path).parent_path();
+    const fs::path dir = fs::path(mtl.empty() ? path : mtl).parent_path();  // textures are relative to the library
     for (const auto& mt : mtls) {
         MaterialDesc d;
         d.name = mt.name;
@@ -348,10 +366,12 @@ static SceneFile load_scene_file_impl(const std::string& path) {
             load_obj_impl((dir / m.get<std::string>()).string(), Mat4(1.f), mesh, materials, &overrides, path, &used);
             continue;
         }
-        check_keys(path, "meshes[]", m, {"file", "transform"});
+        check_keys(path, "meshes[]", m, {"file", "transform", "mtl"});
         if (!m.contains("file") || !m["file"].is_string()) fail(path, "every mesh needs a 'file'");
+        if (m.contains("mtl") && !m["mtl"].is_string()) fail(path, "'meshes[].mtl' must be a string");
         const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
-        load_obj_impl((dir / m["file"].get<std::string>()).string(), xf, mesh, materials, &overrides, path, &used);
+        const std::string mtl = m.contains("mtl") ? (dir / m["mtl"].get<std::string>()).string() : std::string();
+        load_obj_impl((dir / m["file"].get<std::string>()).string(), xf, mesh, materials, &overrides, path, &used, mtl);
     }
     for (const auto& [name, o] : overrides)
         if (!used.count(name)) fail(path, "materials: no mesh has a material named '" + name + "'");

@@ -82,6 +82,12 @@ TEST_CASE("OBJ: a missing MTL library is an error, not grey surfaces", "[scene][
     CHECK_THAT(msg, Contains("missing-mtl.obj") && Contains("no-such-file.mtl"));
 }
 
+TEST_CASE("scene file: a missing library in meshes[].mtl names the key and the file", "[scene][errors]") {
+    const std::string msg = error_of([] { load_scene_file(kBad + "missing-mtl-override.json"); });
+    CHECK_THAT(msg, Contains("missing-mtl-override.json") && Contains("meshes[].mtl") &&
+                        Contains("no-such-library.mtl") && Contains("not found"));
+}
+
 TEST_CASE("OBJ: a NaN vertex is an error naming file and line, not a vertex at 0", "[scene][errors]") {
     const std::string msg = error_of([] { load_scene_file(kBad + "nan-vertex-obj.json"); });
     CHECK_THAT(msg, Contains("nan-vertex.obj") && Contains("line 2") && Contains("'nan'"));
@@ -180,6 +186,28 @@ TEST_CASE("scene file: the Cornell box loads with its light and camera", "[scene
             CHECK(si.p.y < 2.1f);
             CHECK(si.p.z > -1.1f);
         }
+}
+
+TEST_CASE("scene file: meshes[].mtl replaces the OBJ's own material library", "[scene]") {
+    // The archive's Glossy-Floor OBJ names the Glossy library; glossy-floor.json
+    // gives it its own, with a glossy floor (Ks 0.3, Ns 32) and a light of Ke 1.
+    const auto material = [](const SceneFile& sf, const std::string& name) -> const Material& {
+        for (const Material& m : sf.scene->materials())
+            if (m.name == name) return m;
+        FAIL("no material " << name);
+        return sf.scene->materials().front();
+    };
+    const SceneFile own = load_scene_file(GDR_SOURCE_DIR "/scenes/cornell-box/glossy.json");
+    const SceneFile given = load_scene_file(GDR_SOURCE_DIR "/scenes/cornell-box/glossy-floor.json");
+    CHECK(material(own, "floor").min_roughness == 1.f);
+    CHECK(material(given, "floor").min_roughness == Approx(std::sqrt(2.f / 34.f)).epsilon(1e-4));
+    CHECK(material(own, "light").emission == Color(10.f));
+    CHECK(material(given, "light").emission == Color(1.f));
+    CHECK(given.scene->stats().triangles == own.scene->stats().triangles);
+    // An OBJ that names no library gets the given one too.
+    const SceneFile plain = load_scene_file(GDR_SOURCE_DIR "/tests/scenes/mtl-given/scene.json");
+    CHECK(material(plain, "glow").emission == Color(2.f, 3.f, 4.f));
+    CHECK(plain.scene->stats().emitters == 1);
 }
 
 TEST_CASE("scene: visible8 agrees with visible on batches of 0 to 8 segments", "[scene]") {
