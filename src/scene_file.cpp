@@ -175,7 +175,7 @@ void check_vertex_lines(const std::string& path) {
 void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
                    std::set<std::string>* used_overrides, const std::string& mtl = "") {
-    if (!fs::exists(path)) throw InputError(path + ": file not found");
+    if (!fs::is_regular_file(path)) throw InputError(path + (fs::exists(path) ? ": not a file" : ": file not found"));
     check_vertex_lines(path);
     tinyobj::ObjReaderConfig cfg;
     cfg.triangulate = true;
@@ -184,10 +184,12 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     tinyobj::ObjReader reader;
     const auto read_text = [](const std::string& file) {
         std::ifstream in(file, std::ios::binary);
-        if (!in) throw InputError(file + ": cannot read");
-        return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+        std::string text(std::istreambuf_iterator<char>(in), {});
+        if (!in && !in.eof()) throw InputError(file + ": cannot read");
+        return text;
     };
-    if (!mtl.empty() && !fs::exists(mtl)) throw InputError(scene_file + ": meshes[].mtl: " + mtl + ": file not found");
+    if (!mtl.empty() && !fs::is_regular_file(mtl))
+        throw InputError(scene_file + ": meshes[].mtl: " + mtl + (fs::exists(mtl) ? ": not a file" : ": file not found"));
     // With a library of its own the OBJ is parsed from memory: tinyobjloader
     // then reads every `mtllib` from the given text instead of a file.
     bool parsed;

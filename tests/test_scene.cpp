@@ -88,6 +88,13 @@ TEST_CASE("scene file: a missing library in meshes[].mtl names the key and the f
                         Contains("no-such-library.mtl") && Contains("not found"));
 }
 
+TEST_CASE("scene file: a directory given as a mesh or a library is an error, not an empty scene", "[scene][errors]") {
+    const std::string mesh = error_of([] { load_scene_file(kBad + "directory-mesh.json"); });
+    CHECK_THAT(mesh, Contains("directory.obj") && Contains("not a file"));
+    const std::string mtl = error_of([] { load_scene_file(kBad + "directory-mtl.json"); });
+    CHECK_THAT(mtl, Contains("directory-mtl.json") && Contains("meshes[].mtl") && Contains("not a file"));
+}
+
 TEST_CASE("OBJ: a NaN vertex is an error naming file and line, not a vertex at 0", "[scene][errors]") {
     const std::string msg = error_of([] { load_scene_file(kBad + "nan-vertex-obj.json"); });
     CHECK_THAT(msg, Contains("nan-vertex.obj") && Contains("line 2") && Contains("'nan'"));
