@@ -168,6 +168,12 @@ void check_vertex_lines(const std::string& path) {
         }
     }
 }
+
+// Why `file` cannot be read as a file (": file not found", ": not a file"), or "" if it can.
+std::string not_a_file(const std::string& file) {
+    if (fs::is_regular_file(file)) return "";
+    return fs::exists(file) ? ": not a file" : ": file not found";
+}
 }  // namespace
 
 // `mtl`: a material library read instead of the OBJ's own `mtllib` ("" = the
@@ -175,7 +181,7 @@ void check_vertex_lines(const std::string& path) {
 void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
                    std::set<std::string>* used_overrides, const std::string& mtl = "") {
-    if (!fs::is_regular_file(path)) throw InputError(path + (fs::exists(path) ? ": not a file" : ": file not found"));
+    if (const std::string why = not_a_file(path); !why.empty()) throw InputError(path + why);
     check_vertex_lines(path);
     tinyobj::ObjReaderConfig cfg;
     cfg.triangulate = true;
@@ -188,8 +194,8 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
         if (!in && !in.eof()) throw InputError(file + ": cannot read");
         return text;
     };
-    if (!mtl.empty() && !fs::is_regular_file(mtl))
-        throw InputError(scene_file + ": meshes[].mtl: " + mtl + (fs::exists(mtl) ? ": not a file" : ": file not found"));
+    if (const std::string why = mtl.empty() ? "" : not_a_file(mtl); !why.empty())
+        throw InputError(scene_file + ": meshes[].mtl: " + mtl + why);
     // With a library of its own the OBJ is parsed from memory: tinyobjloader
     // then reads every `mtllib` from the given text instead of a file.
     bool parsed;

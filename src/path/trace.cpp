@@ -22,9 +22,13 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
     // ray that reaches it, so that the emitter they select starts loading
     // during the traversal: on scenes with many emitters the light sample
     // then does not wait for memory.
-    float u_light = sampler.at(dims::vertex(1) + dims::kLightSelect);
-    float u_lobe = sampler.at(dims::vertex(1) + dims::kBsdfLobe);
-    if (scene.light_prefetch_pays()) scene.prefetch_light(u_light);  // the first hit is known: as early as it gets
+    float u_light, u_lobe;
+    const auto draw_ahead = [&](int depth) {
+        u_light = sampler.at(dims::vertex(depth) + dims::kLightSelect);
+        u_lobe = sampler.at(dims::vertex(depth) + dims::kBsdfLobe);
+        if (scene.light_prefetch_pays()) scene.prefetch_light(u_light);
+    };
+    draw_ahead(1);  // the first hit is already known: as early as it gets
     for (int depth = 1;; ++depth) {
         if (!hit) {
             path.v.pop_back();
@@ -76,9 +80,7 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         }
         ray = spawn_ray(x.si, x.si.frame.to_world(bs->wi));
         ++path.rays;
-        u_light = sampler.at(dims::vertex(depth + 1) + dims::kLightSelect);
-        u_lobe = sampler.at(dims::vertex(depth + 1) + dims::kBsdfLobe);
-        if (scene.light_prefetch_pays()) scene.prefetch_light(u_light);
+        draw_ahead(depth + 1);
         hit = scene.intersect(ray, path.v.emplace_back().si);  // invalidates `x`
     }
 }

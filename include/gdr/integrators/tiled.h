@@ -62,10 +62,6 @@ public:
     /// The wanted images, in order, computed in one parallel pass over the sums;
     /// throws ParameterError naming an unknown slot or one without a variance.
     std::vector<Image> images(const std::vector<Want>& wanted) const;
-    /// The mean image of a slot by name.
-    Image mean_of(const std::string& name) const { return std::move(images({{name, false}})[0]); }
-    /// The per-sample variance image of a slot by name.
-    Image variance_of(const std::string& name) const { return std::move(images({{name, true}})[0]); }
 
 private:
     friend class TiledIntegrator;
