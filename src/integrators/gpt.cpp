@@ -109,8 +109,10 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
         // In the shared suffix the offset is the base with its own throughput and prefix density.
         const bool merged = has_y && y->merged(k);
         // In closed form the walk stops at the first merged vertex, so there
-        // every merged vertex is the first one.
-        const bool first_merged = closed_form && merged;
+        // every merged vertex is the first one; it stops one vertex sooner
+        // where the offset reconnected onto x_k with x_k's BSDF values, past
+        // x_k's emitter term (that one sees the offset's own previous vertex).
+        const bool closed_from_here = closed_form && (merged || (has_y && k == y->base_values_from));
         if (closed_form && !has_y) {
             // No offset from here on (none, failed or ended): every later term has
             // the plain path-tracing weight and no offset share, so the base's
@@ -150,7 +152,7 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
                 add(e, gradient_mis_weight(mis, T.emit_pdf_bsdf, T.emit_pdf_light, b_b, b_l, r_prev), T.emit, cy);
         }
 
-        if (first_merged) {
+        if (closed_from_here) {
             // Everything from here on (this light sample, later vertices) in closed
             // form: w = w_pt * g(r), g(r) = (a q)^b / ((a q)^b + ((1-a) r q)^b),
             // which is the gradient weight of one technique of density 1 against

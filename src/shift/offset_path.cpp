@@ -52,7 +52,7 @@ struct DeferredVisibility {
             } else if (y.v[k].step.kind == ShiftStep::Kind::Reconnect) {
                 y.v[k].step = ShiftStep{};  // Fail, as a tested reconnection would have
                 y.v.resize(k + 1);
-                y.merged_from = size_t(-1);
+                y.merged_from = y.base_values_from = size_t(-1);
             }
         }
     }
@@ -158,7 +158,7 @@ void finish_offset(const CameraPath& base, OffsetPath& out) {
 void reset(OffsetPath& out) {
     out.v.clear();
     out.rays = 0;
-    out.merged_from = size_t(-1);
+    out.merged_from = out.base_values_from = size_t(-1);
     out.length = 0;
 }
 
@@ -264,12 +264,14 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
             // Reconnected at x_k: same outgoing direction, own incoming one.
             s.wi = x.bs.wi;
             s.jacobian = 1.0;
+            bool base_values = false;
             if (x.bs.is_delta()) {
                 const auto e = y.si.material->bsdf->eval_delta(y.wo, s.wi, y.si.uv);
                 if (!e) return;
                 s.f = e->f, s.pdf = e->pdf, s.delta = true;
             } else if (same_side_values(y, x)) {
                 s.f = x.bs.f, s.pdf = x.bs.pdf;  // sample() returns what eval_pdf() would
+                base_values = true;              // as did its light sample (shift_light_connection)
             } else {
                 const BsdfEval fe = y.si.material->bsdf->eval_pdf(y.wo, s.wi, y.si.uv);
                 s.f = fe.f, s.pdf = fe.pdf;
@@ -277,6 +279,7 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
             if (is_black(s.f)) return;
             s.kind = ShiftStep::Kind::Direction;
             out.merged_from = k + 1;  // same vertex, same outgoing direction: y is x from here on
+            if (base_values) out.base_values_from = k;
             return;
         }
         // The walk tests a reconnection's segment itself (queued, or at once)

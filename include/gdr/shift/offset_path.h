@@ -32,6 +32,11 @@ struct OffsetPath {
     std::vector<OffsetRecord> v;          ///< Records of the offset's own vertices; v[k] pairs with base.v[k].
     size_t length = 0;                    ///< Number of offset vertices, shared suffix included.
     size_t merged_from = size_t(-1);      ///< First depth where y equals x; no records from there on.
+    /// Depth k (merged_from - 1) at which y reconnected onto x_k and takes
+    /// x_k's BSDF values for its light sample and its scattering, because
+    /// the BSDF sees only which side wo is on: from x_k's light sample on,
+    /// y's terms are the base's times y's throughput (size_t(-1) if not).
+    size_t base_values_from = size_t(-1);
     uint64_t rays = 0;                    ///< Rays cast to build it.
     /// Number of offset vertices.
     size_t size() const { return length; }
