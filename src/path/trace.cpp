@@ -56,8 +56,9 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
             x.nee.u_select = u_light;
             x.nee.u_point = u_point;
             x.nee.measure(x.si, x.wo);
-            if (!is_black(x.nee.light.radiance)) {
+            if (!is_black(x.nee.light.radiance) && !is_black(x.nee.f)) {
                 ++path.rays;
+                x.nee.tested = true;
                 x.nee.visible = scene.visible(x.si.p, x.si.ng, x.nee.light.p, x.nee.light.n);
             }
         }

@@ -86,10 +86,18 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         rec.nee = true;
         rec.nee_f = fe.f;
         rec.nee_cos = abs_cos_theta(wi);
-        rec.nee_radiance = x.nee.visible ? ls.radiance : Color(0.f);
         rec.nee_jacobian = 1.0;
         rec.nee_pdf_light_w = x.nee.pdf_w;
         rec.nee_pdf_bsdf = fe.pdf;
+        if (x.nee.tested) {
+            rec.nee_radiance = x.nee.visible ? ls.radiance : Color(0.f);
+        } else if (!is_black(ls.radiance) && !is_black(fe.f)) {
+            // The base's own value was 0, so it left the segment untraced.
+            ++path.rays;
+            const bool lit =
+                DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, ls.p, ls.n, {&path, k, false});
+            rec.nee_radiance = lit ? ls.radiance : Color(0.f);
+        }
         return;
     }
     // The light point is shared in area measure; both ends must be connectable

@@ -34,7 +34,12 @@ inline double pdf_a_to_w(double pdf_a, double dist, double cos_at_point) {
 struct LightConnection {
     bool valid = false;       ///< A sample was drawn (vertex had a non-delta lobe, scene has lights).
     LightSample light;        ///< The point on the emitter (area measure, shared by offset paths).
-    bool visible = false;     ///< Segment vertex -> light point unblocked (only tested when radiance > 0).
+    bool visible = false;     ///< Segment vertex -> light point unblocked; meaningful only if `tested`.
+    /// The segment was traced: only where the sample contributes to the base
+    /// (radiance and f nonzero), as a path tracer would; an offset that sees
+    /// the same light point from the same vertex with other BSDF values
+    /// traces it itself when it was not.
+    bool tested = false;
     float u_select = 0.f;     ///< Random number that picked the emitter triangle.
     Vec2 u_point{0.f};        ///< Random numbers that picked the point on it.
     // The segment to the light point as seen from the vertex, measured once
