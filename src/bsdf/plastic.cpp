@@ -50,9 +50,10 @@ public:
             s.roughness = alpha_;
         }
         if (wi_up.z <= 0.f) return std::nullopt;
-        s.pdf = pdf_up(wo_up, wi_up);
+        const GgxReflection g = ggx_reflection(wo_up, wi_up, alpha_);
+        s.pdf = pdf_up(g, wi_up);
         if (!(s.pdf > 0.f)) return std::nullopt;
-        s.f = eval_up(wo_up, wi_up, uv);
+        s.f = eval_up(g, uv);
         s.wi = Vec3(wi_up.x, wi_up.y, side * wi_up.z);
         s.eta = 1.f;
         return s;
@@ -60,18 +61,19 @@ public:
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return Color(0.f);
-        return eval_up(up(wo), up(wi), uv);
+        return eval_up(ggx_reflection(up(wo), up(wi), alpha_), uv);
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
         if (!same_hemisphere(wo, wi)) return 0.f;
-        return pdf_up(up(wo), up(wi));
+        return pdf_up(ggx_reflection(up(wo), up(wi), alpha_), up(wi));
     }
 
     BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return {};
-        const Vec3 wo_up = up(wo), wi_up = up(wi);
-        return {eval_up(wo_up, wi_up, uv), pdf_up(wo_up, wi_up)};
+        const Vec3 wi_up = up(wi);
+        const GgxReflection g = ggx_reflection(up(wo), wi_up, alpha_);
+        return {eval_up(g, uv), pdf_up(g, wi_up)};
     }
 
     uint32_t flags() const override { return kReflection | kDiffuse | kGlossy; }
@@ -81,13 +83,13 @@ public:
 private:
     static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
 
-    Color eval_up(const Vec3& wo, const Vec3& wi, const Vec2& uv) const {
-        return kd_->eval(uv) * (scale_ * kInvPi) + ks_ * ggx_reflection_eval(wo, wi, alpha_);
+    // Value and density of a reflection into wi_up (upper hemisphere) whose GGX terms are g.
+    Color eval_up(const GgxReflection& g, const Vec2& uv) const {
+        return kd_->eval(uv) * (scale_ * kInvPi) + ks_ * g.value;
     }
 
-    float pdf_up(const Vec3& wo, const Vec3& wi) const {
-        return p_diffuse_ * warp::cosine_hemisphere_pdf(wi) +
-               (1.f - p_diffuse_) * ggx_reflection_pdf(wo, wi, alpha_);
+    float pdf_up(const GgxReflection& g, const Vec3& wi_up) const {
+        return p_diffuse_ * warp::cosine_hemisphere_pdf(wi_up) + (1.f - p_diffuse_) * g.pdf;
     }
 
     std::shared_ptr<Texture> kd_;

@@ -21,11 +21,12 @@ public:
         const Vec3 m = ggx_sample_visible_normal(wo_up, alpha_, u);
         const Vec3 wi_up = reflect(wo_up, m);
         if (wi_up.z <= 0.f) return std::nullopt;
+        const GgxReflection g = ggx_reflection(wo_up, wi_up, alpha_);
+        if (!(g.pdf > 0.f)) return std::nullopt;
         BsdfSample s;
         s.wi = Vec3(wi_up.x, wi_up.y, side * wi_up.z);
-        s.f = eval_up(wo_up, wi_up);
-        s.pdf = ggx_reflection_pdf(wo_up, wi_up, alpha_);
-        if (!(s.pdf > 0.f)) return std::nullopt;
+        s.f = value(g, wi_up);
+        s.pdf = g.pdf;
         s.eta = 1.f;
         s.lobe = kReflection | kGlossy;
         s.roughness = alpha_;
@@ -34,12 +35,18 @@ public:
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
         if (!same_hemisphere(wo, wi)) return Color(0.f);
-        return eval_up(up(wo), up(wi));
+        return value(ggx_reflection(up(wo), up(wi), alpha_), up(wi));
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
         if (!same_hemisphere(wo, wi)) return 0.f;
         return ggx_reflection_pdf(up(wo), up(wi), alpha_);
+    }
+
+    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+        if (!same_hemisphere(wo, wi)) return {};
+        const GgxReflection g = ggx_reflection(up(wo), up(wi), alpha_);
+        return {value(g, up(wi)), g.pdf};
     }
 
     uint32_t flags() const override { return kReflection | kGlossy; }
@@ -49,11 +56,10 @@ public:
 private:
     static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
 
-    Color eval_up(const Vec3& wo, const Vec3& wi) const {
-        const float g = ggx_reflection_eval(wo, wi, alpha_);
-        if (g <= 0.f) return Color(0.f);
-        const Vec3 h = glm::normalize(wo + wi);
-        return fresnel_schlick(f0_, glm::dot(wi, h)) * g;
+    // The BSDF value of a reflection wo -> wi_up (upper hemisphere) with GGX terms g.
+    Color value(const GgxReflection& g, const Vec3& wi_up) const {
+        if (g.value <= 0.f) return Color(0.f);
+        return fresnel_schlick(f0_, glm::dot(wi_up, g.h)) * g.value;
     }
 
     Color f0_;

@@ -78,23 +78,41 @@ inline float ggx_visible_normal_pdf(const Vec3& wo, const Vec3& m, float alpha) 
     return smith_g1(wo, m, alpha) * std::max(0.f, glm::dot(wo, m)) * ggx_d(m, alpha) / wo.z;
 }
 
-/// Solid-angle density (1/sr) of reflecting wo about a visible normal sampled by
-/// ggx_sample_visible_normal: D_wo(h) / (4 wo.h), the Jacobian of h -> wi
-/// (Walter eq. 14). Both directions must be in the upper hemisphere.
-inline float ggx_reflection_pdf(const Vec3& wo, const Vec3& wi, float alpha) {
-    if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
-    const Vec3 h = glm::normalize(wo + wi);
-    const float wo_h = glm::dot(wo, h);
-    if (wo_h <= 0.f) return 0.f;
-    return ggx_visible_normal_pdf(wo, h, alpha) / (4.f * wo_h);
+/// GGX reflection of one pair of directions: its value and its sampling
+/// density share the half vector, D and Lambda(wo), which a BSDF needing both
+/// (sample(), eval_pdf()) would otherwise compute twice.
+struct GgxReflection {
+    float value = 0.f;  ///< D G2 / (4 cos_o cos_i) without Fresnel (1/sr, Walter eq. 20).
+    /// Density of reflecting wo about a visible normal from
+    /// ggx_sample_visible_normal: D_wo(h) / (4 wo.h), the Jacobian of h -> wi
+    /// (Walter eq. 14) (1/sr).
+    float pdf = 0.f;
+    Vec3 h{0.f};        ///< Half vector normalize(wo + wi), for a Fresnel term (0 if value and pdf are).
+};
+
+/// GgxReflection of wo and wi; both must be in the upper hemisphere, else all is 0.
+inline GgxReflection ggx_reflection(const Vec3& wo, const Vec3& wi, float alpha) {
+    GgxReflection r;
+    if (wo.z <= 0.f || wi.z <= 0.f) return r;
+    r.h = glm::normalize(wo + wi);
+    const float d = ggx_d(r.h, alpha), lambda_o = ggx_lambda(wo, alpha);
+    const float wo_h = glm::dot(wo, r.h);
+    // smith_g2 and smith_g1 with their side tests, written out to share Lambda(wo).
+    const bool wo_visible = wo_h * wo.z > 0.f;
+    if (wo_visible && glm::dot(wi, r.h) * wi.z > 0.f)
+        r.value = d * (1.f / (1.f + lambda_o + ggx_lambda(wi, alpha))) / (4.f * wo.z * wi.z);
+    if (wo_h > 0.f && wo_visible) r.pdf = (1.f / (1.f + lambda_o)) * std::max(0.f, wo_h) * d / wo.z / (4.f * wo_h);
+    return r;
 }
 
-/// GGX reflection BSDF without Fresnel, D G2 / (4 cos_o cos_i) (1/sr, Walter
-/// eq. 20); both directions in the upper hemisphere, else 0.
+/// Density alone of ggx_reflection (1/sr).
+inline float ggx_reflection_pdf(const Vec3& wo, const Vec3& wi, float alpha) {
+    return ggx_reflection(wo, wi, alpha).pdf;
+}
+
+/// Value alone of ggx_reflection (1/sr).
 inline float ggx_reflection_eval(const Vec3& wo, const Vec3& wi, float alpha) {
-    if (wo.z <= 0.f || wi.z <= 0.f) return 0.f;
-    const Vec3 h = glm::normalize(wo + wi);
-    return ggx_d(h, alpha) * smith_g2(wo, wi, h, alpha) / (4.f * wo.z * wi.z);
+    return ggx_reflection(wo, wi, alpha).value;
 }
 
 /// Schlick's approximation of conductor Fresnel reflectance (unitless RGB)
