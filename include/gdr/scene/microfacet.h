@@ -87,7 +87,7 @@ struct GgxReflection {
     /// ggx_sample_visible_normal: D_wo(h) / (4 wo.h), the Jacobian of h -> wi
     /// (Walter eq. 14) (1/sr).
     float pdf = 0.f;
-    Vec3 h{0.f};        ///< Half vector normalize(wo + wi), for a Fresnel term (0 if value and pdf are).
+    Vec3 h{0.f};        ///< Half vector normalize(wo + wi), for a Fresnel term (0 if a direction is below the surface).
 };
 
 /// GgxReflection of wo and wi; both must be in the upper hemisphere, else all is 0.
