@@ -65,6 +65,10 @@ std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, c
 // emitter's tangent plane (in double, independent of how it was sampled).
 std::optional<double> fd_light_jacobian(const PathVertex& X, const OffsetVertex& y, float eps) {
     const Vec3d p(X.nee.light.p), n(X.nee.light.n), px(X.si.p), py(y.si.p);
+    // Seen edge-on (a vertex in the emitter's own plane), both the density
+    // and its differences are float rounding.
+    for (const Vec3d& q : {px, py})
+        if (!(std::abs(glm::dot(n, glm::normalize(q - p))) > 1e-4)) return std::nullopt;
     const Frame f(X.nee.light.n);
     const double h = double(eps) * glm::length(p - px);
     const Vec3d d[4] = {h * Vec3d(f.s), -h * Vec3d(f.s), h * Vec3d(f.t), -h * Vec3d(f.t)};
