@@ -50,9 +50,10 @@ std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, c
         wx[i] = Vec3d(dir);
         wy[i] = Vec3d(y.si.frame.to_world(s.wi));
     }
-    // A moved x_{k+1} within a few hundred float steps of where it was (a
-    // bounce a fraction of a millimetre long) cannot be told apart from
-    // rounding: its differences would measure the float grid, not the shift.
+    // A moved x_{k+1} within a few hundred float steps of where it was (after
+    // a bounce thousands of times shorter than the scene) cannot be told
+    // apart from rounding: its differences would measure the float grid,
+    // not the shift.
     const float resolution = 128.f * std::numeric_limits<float>::epsilon() *
                              std::max({1.f, std::abs(p1.x), std::abs(p1.y), std::abs(p1.z)});
     if (!(moved > resolution)) return std::nullopt;
