@@ -17,6 +17,7 @@ struct PairEstimate {
 /// What the base path contributes at each vertex, computed once and shared by
 /// its four offsets. Densities are solid-angle (1/sr), contributions radiance.
 struct BaseTerms {
+    /// The terms of one base vertex x_k.
     struct Vertex {
         Color emit{0.f};        ///< f(x)/q(x) of the emitter hit at x_k by BSDF sampling at x_{k-1}.
         double emit_pdf_bsdf = 0.0;   ///< BSDF density of that direction at x_{k-1}.

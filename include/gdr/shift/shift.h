@@ -61,6 +61,7 @@ struct ShiftStepInput {
 
 /// The result of shifting the base's scattering at x_k onto y_k.
 struct ShiftStep {
+    /// How the offset leaves y_k.
     enum class Kind {
         Fail,       ///< No offset path: f(y) = 0 from here on.
         Direction,  ///< The offset continues along `wi` with a ray of its own.
