@@ -101,7 +101,7 @@ inline GgxReflection ggx_reflection(const Vec3& wo, const Vec3& wi, float alpha)
     const bool wo_visible = wo_h * wo.z > 0.f;
     if (wo_visible && glm::dot(wi, r.h) * wi.z > 0.f)
         r.value = d * (1.f / (1.f + lambda_o + ggx_lambda(wi, alpha))) / (4.f * wo.z * wi.z);
-    if (wo_h > 0.f && wo_visible) r.pdf = (1.f / (1.f + lambda_o)) * std::max(0.f, wo_h) * d / wo.z / (4.f * wo_h);
+    if (wo_visible) r.pdf = (1.f / (1.f + lambda_o)) * wo_h * d / wo.z / (4.f * wo_h);  // wo.z > 0, so wo_h > 0
     return r;
 }
 
