@@ -235,6 +235,10 @@ public:
         trace_.rr_depth = int(p.get_int("rr_depth", 5));
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
+        const long long batch = p.get_int("batch", kMaxBatch);
+        if (batch < 1 || batch > kMaxBatch)
+            throw ParameterError("gpt: batch must be between 1 and " + std::to_string(kMaxBatch));
+        batch_ = int(batch);
         const std::string rec = p.get_choice("reconstruct", "l1+l2", {"l1+l2", "l1", "l2", "none"});
         solve_l1_ = rec == "l1+l2" || rec == "l1";
         solve_l2_ = rec == "l1+l2" || rec == "l2";
@@ -272,74 +276,54 @@ protected:
     }
 
     void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
-        // Per-thread scratch kept between samples (no allocation per sample);
-        // one thread_local object, so one initialisation guard per sample.
+        SampleJob job{px, py, sampler};
+        sample_batch(scene, &job, 1, out, 0, rays);
+    }
+
+    int batch_size() const override { return batch_; }
+
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        // A G-PT sample runs through more code (four Embree kernels, the
+        // base's tracing, the offsets' walks, the estimates) than the
+        // instruction cache holds, so each stage runs for all jobs in turn.
+        // Per-thread scratch is kept between calls (no allocation per sample).
         struct Scratch {
-            CameraPath path;
-            OffsetPath offsets[kDirs];
+            CameraPath path[kMaxBatch];
+            OffsetPath offsets[kMaxBatch][kDirs];
+            CameraPacket packet[kMaxBatch];
+            bool inside[kMaxBatch][kDirs];
             BaseTerms terms;
         };
         thread_local Scratch scratch;
-        CameraPath& path = scratch.path;
-        OffsetPath* offsets = scratch.offsets;
-        BaseTerms& terms = scratch.terms;
-        sampler.set_dimension(dims::kFilm);
-        const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
         const int W = scene.camera().width(), H = scene.camera().height();
         Vec2 step[kDirs];
-        bool inside[kDirs];
-        for (int d = 0; d < kDirs; ++d) {
-            const int nx = px + kDx[d], ny = py + kDy[d];
-            step[d] = Vec2(float(kDx[d]), float(kDy[d]));
-            inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
-        }
-        // The base's camera ray and its offsets' are traced as one packet.
-        trace_and_shift_camera_paths4(scene, *shift_, config_, film, sampler, trace_, path, step, inside, offsets);
-        rays += path.rays;
-        for (int d = 0; d < kDirs; ++d) rays += inside[d] ? offsets[d].rays : 0;
-        if (path.size() == 0) return;
-
-        auto put = [&](int slot, const Color& c) {
-            out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
-        };
-        compute_base_terms(scene, path, mis_.heuristic, terms);
-        // The base alone (plain path-tracing MIS) is needed for the base-only primal and at the border.
-        PairEstimate alone;
-        bool have_alone = false;
-        const auto base_alone = [&]() -> const PairEstimate& {
-            if (!have_alone) alone = evaluate_pair(scene, path, terms, nullptr, mis_), have_alone = true;
-            return alone;
-        };
-        if (!primal_both_) {
-            const Color b = base_alone().base;
-            out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
-        }
-        for (int d = 0; d < kDirs; ++d) {
-            if (!inside[d]) {
-                // No neighbour to share with: the base alone estimates its pixel.
-                put(kSelf, 0.25f * base_alone().base);
-                continue;
+        for (int d = 0; d < kDirs; ++d) step[d] = Vec2(float(kDx[d]), float(kDy[d]));
+        for (int j = 0; j < n; ++j) {
+            Sampler& sampler = jobs[j].sampler;
+            const int px = jobs[j].x, py = jobs[j].y;
+            sampler.set_dimension(dims::kFilm);
+            const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
+            bool* inside = scratch.inside[j];
+            for (int d = 0; d < kDirs; ++d) {
+                const int nx = px + kDx[d], ny = py + kDy[d];
+                inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
             }
-            const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis_);
-            put(kSelf, 0.25f * e.base);
-            put(kGrad + d, e.gradient);
-            put(kSplat + d, 0.25f * e.offset);
+            // The base's camera ray and its offsets' are traced as one packet.
+            trace_camera_packet(scene, film, scratch.path[j], step, inside, scratch.offsets[j], scratch.packet[j]);
         }
-        put(kDirect, path.v[0].emitted);
-        // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
-        float* aux = out + 3 * kAux;
-        for (const PathVertex& v : path.v) {
-            if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
-                &v != &path.v.back())
-                continue;
-            const Color a = v.si.material->bsdf->albedo(v.si.uv);
-            aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
-            aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
-            break;
+        for (int j = 0; j < n; ++j)
+            continue_camera_path(scene, jobs[j].sampler, trace_, scratch.path[j], scratch.packet[j].rays[0],
+                                 scratch.packet[j].hit[0]);
+        for (int j = 0; j < n; ++j)
+            shift_from_camera_packet(scene, *shift_, config_, scratch.path[j], scratch.packet[j], scratch.offsets[j]);
+        for (int j = 0; j < n; ++j) {
+            rays += scratch.path[j].rays;
+            for (int d = 0; d < kDirs; ++d) rays += scratch.inside[j][d] ? scratch.offsets[j][d].rays : 0;
+            estimate(scene, scratch.path[j], scratch.offsets[j], scratch.inside[j], scratch.terms,
+                     out + size_t(j) * stride);
         }
-        aux[6] = path.v[0].si.t;
     }
-
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
         const int W = out.width(), H = out.height();
         Image primal(W, H, 3), primal_var(W, H, 3), dx(W, H, 3), dy(W, H, 3), dx_var(W, H, 3), dy_var(W, H, 3);
@@ -401,12 +385,62 @@ protected:
     }
 
 private:
+    // Most samples whose stages run in turn, and the default: 4, 8 and 16
+    // ran alike on the Cornell box, about 7% less CPU time per sample than 1.
+    static constexpr int kMaxBatch = 8;
+
+    // The sample's slots from its traced base path and offsets.
+    void estimate(const Scene& scene, const CameraPath& path, const OffsetPath* offsets, const bool* inside,
+                  BaseTerms& terms, float* out) const {
+        if (path.size() == 0) return;
+        auto put = [&](int slot, const Color& c) {
+            out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
+        };
+        compute_base_terms(scene, path, mis_.heuristic, terms);
+        // The base alone (plain path-tracing MIS) is needed for the base-only primal and at the border.
+        PairEstimate alone;
+        bool have_alone = false;
+        const auto base_alone = [&]() -> const PairEstimate& {
+            if (!have_alone) alone = evaluate_pair(scene, path, terms, nullptr, mis_), have_alone = true;
+            return alone;
+        };
+        if (!primal_both_) {
+            const Color b = base_alone().base;
+            out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
+        }
+        for (int d = 0; d < kDirs; ++d) {
+            if (!inside[d]) {
+                // No neighbour to share with: the base alone estimates its pixel.
+                put(kSelf, 0.25f * base_alone().base);
+                continue;
+            }
+            const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis_);
+            put(kSelf, 0.25f * e.base);
+            put(kGrad + d, e.gradient);
+            put(kSplat + d, 0.25f * e.offset);
+        }
+        put(kDirect, path.v[0].emitted);
+        // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
+        float* aux = out + 3 * kAux;
+        for (const PathVertex& v : path.v) {
+            if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
+                &v != &path.v.back())
+                continue;
+            const Color a = v.si.material->bsdf->albedo(v.si.uv);
+            aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
+            aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
+            break;
+        }
+        aux[6] = path.v[0].si.t;
+    }
+
     std::unique_ptr<Shift> shift_;
     std::string shift_name_;
     ShiftConfig config_;
     GradientMis mis_;
     TraceOptions trace_;
     bool primal_both_ = true;
+    int batch_ = kMaxBatch;
     bool solve_l1_ = true, solve_l2_ = true;
     double alpha_ = 0.2;
 };
@@ -415,7 +449,7 @@ private:
 
 void register_gpt(Registry<Integrator>& r) {
     r.add("gpt",
-          "gradient-domain path tracing (params: shift, threshold, classification, mis, max_depth, rr_depth, primal, reconstruct, alpha)",
+          "gradient-domain path tracing (params: shift, threshold, classification, mis, max_depth, rr_depth, primal, reconstruct, alpha, batch)",
           [](const Params& p) { return std::make_unique<GradientPathTracer>(p); });
 }
 

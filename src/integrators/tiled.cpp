@@ -20,6 +20,7 @@ namespace gdr {
 
 namespace {
 constexpr int kTile = 16;
+constexpr int kMaxBatch = 16;  // most jobs per sample_batch() call
 using Clock = std::chrono::steady_clock;
 
 // Uninitialised doubles on transparent huge pages where the kernel offers them:
@@ -57,6 +58,11 @@ struct TiledIntegrator::Buffers {
         return *b;
     }
 };
+
+void TiledIntegrator::sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                                   uint64_t& rays) const {
+    for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+}
 
 TiledIntegrator::TiledIntegrator() : buffers_(std::make_unique<Buffers>()) {}
 TiledIntegrator::~TiledIntegrator() = default;
@@ -151,6 +157,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     const bool timed = st.time_budget > 0.0;
     const uint64_t total_samples = timed ? 0 : uint64_t(st.spp) * W * H;
 
+    const int batch = std::clamp(batch_size(), 1, kMaxBatch);
     tbb::task_arena arena(st.threads > 0 ? st.threads : tbb::task_arena::automatic);
     long long done = 0;  // samples per pixel finished
     const auto cancelled = [&] { return st.cancel && st.cancel->load(); };
@@ -159,44 +166,63 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         arena.execute([&] {
             tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
                 const Tile& t = tiles[ti];
+                // Jobs in pixel order, sample order within a pixel, handed to
+                // sample_batch() `batch` at a time (across pixels when passes
+                // are short); each pixel's sums still add its samples in order.
                 float v[64];
                 std::vector<float> v_heap;
                 float* vp = v;
-                if (stride > 64) v_heap.resize(stride), vp = v_heap.data();
+                if (size_t(stride) * batch > 64) v_heap.resize(size_t(stride) * batch), vp = v_heap.data();
+                SampleJob jobs[kMaxBatch];
+                int n = 0;
                 uint64_t local_rays = 0, local_nan = 0;
-                for (int y = t.y0; y < t.y1; ++y)
-                    for (int x = t.x0; x < t.x1; ++x) {
+                const auto flush = [&] {
+                    std::fill(vp, vp + size_t(n) * stride, 0.f);
+                    if (n == 1)
+                        sample(scene, jobs[0].x, jobs[0].y, jobs[0].sampler, vp, local_rays);
+                    else
+                        sample_batch(scene, jobs, n, vp, stride, local_rays);
+                    for (int j = 0; j < n; ++j) {
+                        const float* a = vp + size_t(j) * stride;
+                        const int x = jobs[j].x, y = jobs[j].y;
+                        // Non-finite floats have all exponent bits set. Integer
+                        // tests, unlike float compares with NaN, vectorise.
+                        uint32_t bad = 0;
+                        for (int k = 0; k < stride; ++k)
+                            bad |= uint32_t((std::bit_cast<uint32_t>(a[k]) & 0x7f800000u) == 0x7f800000u);
+                        if (bad) [[unlikely]] {
+                            // A NaN/Inf sample is reported with its pixel and dropped as zero.
+                            ++local_nan;
+                            std::lock_guard<std::mutex> lock(nan_mutex);
+                            if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
+                            continue;
+                        }
                         double* ps = &sum[(size_t(y) * W + x) * stride];
                         double* pq = &sum2[(size_t(y) * W + x) * var_stride];
+                        for (int k = 0; k < stride; ++k) ps[k] += a[k];
+                        for (const Run& run : squared) {
+                            const float* r = a + run.from;
+                            double* q = pq + run.to;
+                            for (int i = 0; i < run.n; ++i) q[i] += double(r[i]) * double(r[i]);
+                        }
+                    }
+                    n = 0;
+                };
+                for (int y = t.y0; y < t.y1; ++y)
+                    for (int x = t.x0; x < t.x1; ++x) {
                         if (first_pass) {
-                            std::fill(ps, ps + stride, 0.0);
-                            std::fill(pq, pq + var_stride, 0.0);
+                            std::fill(&sum[(size_t(y) * W + x) * stride], &sum[(size_t(y) * W + x + 1) * stride], 0.0);
+                            std::fill(&sum2[(size_t(y) * W + x) * var_stride],
+                                      &sum2[(size_t(y) * W + x + 1) * var_stride], 0.0);
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         for (long long i = first; i < first + count; ++i) {
-                            std::fill(vp, vp + stride, 0.f);
-                            Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
-                            sample(scene, x, y, sampler, vp, local_rays);
-                            // Non-finite floats have all exponent bits set. Integer
-                            // tests, unlike float compares with NaN, vectorise.
-                            uint32_t bad = 0;
-                            for (int k = 0; k < stride; ++k)
-                                bad |= uint32_t((std::bit_cast<uint32_t>(vp[k]) & 0x7f800000u) == 0x7f800000u);
-                            if (bad) [[unlikely]] {
-                                // A NaN/Inf sample is reported with its pixel and dropped as zero.
-                                ++local_nan;
-                                std::lock_guard<std::mutex> lock(nan_mutex);
-                                if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
-                                continue;
-                            }
-                            for (int k = 0; k < stride; ++k) ps[k] += vp[k];
-                            for (const Run& run : squared) {
-                                const float* a = vp + run.from;
-                                double* q = pq + run.to;
-                                for (int j = 0; j < run.n; ++j) q[j] += double(a[j]) * double(a[j]);
-                            }
+                            jobs[n].x = x, jobs[n].y = y;
+                            jobs[n].sampler = Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
+                            if (++n == batch) flush();
                         }
                     }
+                if (n > 0) flush();
                 rays += local_rays;
                 nonfinite += local_nan;
                 const uint64_t s = samples += uint64_t(count) * (t.x1 - t.x0) * (t.y1 - t.y0);

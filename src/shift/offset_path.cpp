@@ -236,23 +236,32 @@ void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConf
     complete_offsets4(scene, shift, config, base, rays, traced, hit, out);
 }
 
+void trace_camera_packet(const Scene& scene, const Vec2& film, CameraPath& base, const Vec2 pixel_offsets[4],
+                         const bool active[4], OffsetPath out[4], CameraPacket& packet) {
+    SurfaceInteraction* si[8] = {};
+    for (int i = 0; i < 8; ++i) packet.traced[i] = false;
+    si[0] = begin_camera_path(scene, film, base, packet.rays[0]);
+    packet.traced[0] = true;
+    for (int i = 0; i < 4; ++i) {
+        reset(out[i]);
+        packet.traced[1 + i] = active[i];
+        if (active[i]) si[1 + i] = start_offset(scene, film, pixel_offsets[i], out[i], packet.rays[1 + i]);
+    }
+    scene.intersect8(packet.rays, packet.traced, si, packet.hit);
+}
+
+void shift_from_camera_packet(const Scene& scene, const Shift& shift, const ShiftConfig& config,
+                              const CameraPath& base, const CameraPacket& packet, OffsetPath out[4]) {
+    complete_offsets4(scene, shift, config, base, packet.rays + 1, packet.traced + 1, packet.hit + 1, out);
+}
+
 void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config,
                                    const Vec2& film, Sampler& sampler, const TraceOptions& opt, CameraPath& base,
                                    const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]) {
-    // Lane 0 is the base's camera ray, lanes 1-4 the offsets', 5-7 unused.
-    Ray rays[8];
-    SurfaceInteraction* si[8] = {};
-    bool traced[8] = {}, hit[8];
-    si[0] = begin_camera_path(scene, film, base, rays[0]);
-    traced[0] = true;
-    for (int i = 0; i < 4; ++i) {
-        reset(out[i]);
-        traced[1 + i] = active[i];
-        if (active[i]) si[1 + i] = start_offset(scene, film, pixel_offsets[i], out[i], rays[1 + i]);
-    }
-    scene.intersect8(rays, traced, si, hit);
-    continue_camera_path(scene, sampler, opt, base, rays[0], hit[0]);
-    complete_offsets4(scene, shift, config, base, rays + 1, traced + 1, hit + 1, out);
+    CameraPacket packet;
+    trace_camera_packet(scene, film, base, pixel_offsets, active, out, packet);
+    continue_camera_path(scene, sampler, opt, base, packet.rays[0], packet.hit[0]);
+    shift_from_camera_packet(scene, shift, config, base, packet, out);
 }
 
 namespace {

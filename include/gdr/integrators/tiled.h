@@ -96,6 +96,22 @@ protected:
     /// pixel and sample index) and writes all slots consecutively to `out`
     /// (zero-initialised); adds the rays it cast to `rays`.
     virtual void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const = 0;
+    /// One sample to compute: its pixel and its sampler (keyed to the pixel
+    /// and sample index).
+    struct SampleJob {
+        int x = 0, y = 0;  ///< Pixel column and row.
+        Sampler sampler;   ///< The sample's stream, at dimension 0.
+    };
+    /// Computes jobs[0..n) as sample() each, job i writing its slots to
+    /// out + i * stride (zero-initialised); adds the rays cast to `rays`. The
+    /// default calls sample() per job. An integrator whose sample runs through
+    /// more code than the instruction cache holds overrides it to run the
+    /// stages of several samples in turn; results must not depend on n.
+    virtual void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                              uint64_t& rays) const;
+    /// The most jobs render() passes to sample_batch() at once (1: sample() per
+    /// job; render() takes at most 16).
+    virtual int batch_size() const { return 1; }
     /// Turns accumulated slots into output layers; the default writes each slot
     /// as a layer of its name and its variance as "<name>_variance". Runs in
     /// the render's thread arena, so its parallel loops keep to its threads.

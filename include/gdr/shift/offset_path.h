@@ -57,6 +57,26 @@ void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig
 void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                          const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]);
 
+/// The camera rays of a base path (lane 0) and of its four offsets (lanes
+/// 1-4), with which were traced and which hit; lanes 5-7 are unused.
+struct CameraPacket {
+    Ray rays[8];           ///< Camera rays (world space, scene units).
+    bool traced[8] = {};   ///< The lane's ray was cast.
+    bool hit[8] = {};      ///< The lane's ray hit; its hit is in the first record of its path.
+};
+
+/// The first stage of trace_and_shift_camera_paths4(): resets `base` and
+/// `out`, and traces the base's camera ray through `film` and those of its
+/// active offsets as one packet into their first records.
+void trace_camera_packet(const Scene& scene, const Vec2& film, CameraPath& base, const Vec2 pixel_offsets[4],
+                         const bool active[4], OffsetPath out[4], CameraPacket& packet);
+
+/// The last stage of trace_and_shift_camera_paths4(), after
+/// continue_camera_path() of the base from packet lane 0: walks the offsets
+/// on from their camera hits, their shadow segments traced as packets.
+void shift_from_camera_packet(const Scene& scene, const Shift& shift, const ShiftConfig& config,
+                              const CameraPath& base, const CameraPacket& packet, OffsetPath out[4]);
+
 /// trace_camera_path() of the base through `film`, then shift_camera_paths4()
 /// of it, with the base's camera ray traced in the same packet as its
 /// offsets' (Scene::intersect8). Gives what those two calls give, up to that
