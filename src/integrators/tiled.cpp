@@ -176,47 +176,55 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 SampleJob jobs[kMaxBatch];
                 int n = 0;
                 uint64_t local_rays = 0, local_nan = 0;
+                // Adds one sample's values `a` to pixel (x, y)'s sums, or
+                // drops and reports it if any value is not finite.
+                const auto add = [&](const float* a, int x, int y, double* ps, double* pq) __attribute__((always_inline)) {
+                    // Non-finite floats have all exponent bits set. Integer
+                    // tests, unlike float compares with NaN, vectorise.
+                    uint32_t bad = 0;
+                    for (int k = 0; k < stride; ++k)
+                        bad |= uint32_t((std::bit_cast<uint32_t>(a[k]) & 0x7f800000u) == 0x7f800000u);
+                    if (bad) [[unlikely]] {
+                        // A NaN/Inf sample is reported with its pixel and dropped as zero.
+                        ++local_nan;
+                        std::lock_guard<std::mutex> lock(nan_mutex);
+                        if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
+                        return;
+                    }
+                    for (int k = 0; k < stride; ++k) ps[k] += a[k];
+                    for (const Run& run : squared) {
+                        const float* r = a + run.from;
+                        double* q = pq + run.to;
+                        for (int i = 0; i < run.n; ++i) q[i] += double(r[i]) * double(r[i]);
+                    }
+                };
                 const auto flush = [&] {
                     std::fill(vp, vp + size_t(n) * stride, 0.f);
-                    if (n == 1)
-                        sample(scene, jobs[0].x, jobs[0].y, jobs[0].sampler, vp, local_rays);
-                    else
-                        sample_batch(scene, jobs, n, vp, stride, local_rays);
+                    sample_batch(scene, jobs, n, vp, stride, local_rays);
                     for (int j = 0; j < n; ++j) {
-                        const float* a = vp + size_t(j) * stride;
-                        const int x = jobs[j].x, y = jobs[j].y;
-                        // Non-finite floats have all exponent bits set. Integer
-                        // tests, unlike float compares with NaN, vectorise.
-                        uint32_t bad = 0;
-                        for (int k = 0; k < stride; ++k)
-                            bad |= uint32_t((std::bit_cast<uint32_t>(a[k]) & 0x7f800000u) == 0x7f800000u);
-                        if (bad) [[unlikely]] {
-                            // A NaN/Inf sample is reported with its pixel and dropped as zero.
-                            ++local_nan;
-                            std::lock_guard<std::mutex> lock(nan_mutex);
-                            if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
-                            continue;
-                        }
-                        double* ps = &sum[(size_t(y) * W + x) * stride];
-                        double* pq = &sum2[(size_t(y) * W + x) * var_stride];
-                        for (int k = 0; k < stride; ++k) ps[k] += a[k];
-                        for (const Run& run : squared) {
-                            const float* r = a + run.from;
-                            double* q = pq + run.to;
-                            for (int i = 0; i < run.n; ++i) q[i] += double(r[i]) * double(r[i]);
-                        }
+                        const size_t at = size_t(jobs[j].y) * W + jobs[j].x;
+                        add(vp + size_t(j) * stride, jobs[j].x, jobs[j].y, &sum[at * stride], &sum2[at * var_stride]);
                     }
                     n = 0;
                 };
                 for (int y = t.y0; y < t.y1; ++y)
                     for (int x = t.x0; x < t.x1; ++x) {
+                        double* ps = &sum[(size_t(y) * W + x) * stride];
+                        double* pq = &sum2[(size_t(y) * W + x) * var_stride];
                         if (first_pass) {
-                            std::fill(&sum[(size_t(y) * W + x) * stride], &sum[(size_t(y) * W + x + 1) * stride], 0.0);
-                            std::fill(&sum2[(size_t(y) * W + x) * var_stride],
-                                      &sum2[(size_t(y) * W + x + 1) * var_stride], 0.0);
+                            std::fill(ps, ps + stride, 0.0);
+                            std::fill(pq, pq + var_stride, 0.0);
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         for (long long i = first; i < first + count; ++i) {
+                            if (batch == 1) {
+                                // One at a time: no job queue between the sample and its sums.
+                                std::fill(vp, vp + stride, 0.f);
+                                Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
+                                sample(scene, x, y, sampler, vp, local_rays);
+                                add(vp, x, y, ps, pq);
+                                continue;
+                            }
                             jobs[n].x = x, jobs[n].y = y;
                             jobs[n].sampler = Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                             if (++n == batch) flush();
