@@ -108,6 +108,11 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
         const uint32_t block = dims::vertex(depth);
         sampler.set_dimension(block + dims::kPerVertex);  // past this vertex's block, as trace_camera_path leaves it
 
+        // The continuation is sampled before the light: the two are independent,
+        // so their dependency chains (hash, warp, division) overlap instead of
+        // the BSDF's running alone between the shadow ray and the next cast.
+        const auto bs = bsdf.sample(wo, si.uv, u_lobe,
+                                    Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1)));
         if (opt.nee && !pure_delta && scene.has_lights()) {
             const LightSample ls = scene.sample_light(si.p, u_light,
                                                       Vec2(sampler.at(block + dims::kLightPoint),
@@ -130,8 +135,6 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
             }
         }
 
-        const auto bs = bsdf.sample(wo, si.uv, u_lobe,
-                                    Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1)));
         if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) break;
         beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);
         prev_delta = bs->is_delta();
