@@ -9,14 +9,23 @@ namespace gdr {
 
 namespace {
 
+PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,
+                           const SurfaceInteraction* first, bool first_hit);
+
+// Most camera rays traced as one Embree packet.
+constexpr int kPacket = 8;
+
 class PathTracer final : public TiledIntegrator {
 public:
     explicit PathTracer(const Params& p) {
         max_depth_ = int(p.get_int("max_depth", -1));
         rr_depth_ = int(p.get_int("rr_depth", 5));
         nee_ = p.get_bool("nee", true);
+        const long long batch = p.get_int("batch", kPacket);
         if (max_depth_ == 0 || max_depth_ < -1) throw ParameterError("pt: max_depth must be -1 (unlimited) or >= 1");
         if (rr_depth_ < 1) throw ParameterError("pt: rr_depth must be >= 1");
+        if (batch < 1 || batch > kPacket) throw ParameterError("pt: batch must be between 1 and " + std::to_string(kPacket));
+        batch_ = int(batch);
     }
 
     std::string describe() const override {
@@ -30,14 +39,53 @@ protected:
     }
 
     void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const override {
-        sampler.set_dimension(dims::kFilm);
-        const Vec2 film = Vec2(float(x), float(y)) + sampler.next2d();
-        PathResult r = trace_path(scene, scene.camera().generate_ray(film), sampler, PathOptions{max_depth_, rr_depth_, nee_});
-        rays += r.rays;
-        out[0] = r.radiance.r, out[1] = r.radiance.g, out[2] = r.radiance.b;
-        out[3] = r.albedo.r, out[4] = r.albedo.g, out[5] = r.albedo.b;
-        out[6] = r.normal.x, out[7] = r.normal.y, out[8] = r.normal.z;
-        out[9] = r.depth;
+        SampleJob job{x, y, sampler};
+        sample_batch(scene, &job, 1, out, 0, rays);
+    }
+
+    int batch_size() const override { return batch_; }
+
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        // Camera rays go as one packet: consecutive jobs are samples of one
+        // pixel, or of neighbouring pixels in a row, so they share traversal
+        // (and often the hit triangle, whose frame is then computed once).
+        // A lone ray goes as a packet too: the packet kernel's last-bit
+        // rounding differs from the single-ray kernel's, so every camera ray
+        // takes the same kernel and images do not depend on the batch size.
+        Ray ray[kPacket];
+        SurfaceInteraction si[kPacket];
+        SurfaceInteraction* const sip[kPacket] = {si, si + 1, si + 2, si + 3, si + 4, si + 5, si + 6, si + 7};
+        bool active[kPacket], hit[kPacket];
+        const PathOptions opt{max_depth_, rr_depth_, nee_};
+        for (int base = 0; base < n; base += kPacket) {
+            const int m = std::min(kPacket, n - base);
+            for (int j = 0; j < kPacket; ++j) {
+                active[j] = j < m;
+                if (!active[j]) {
+                    ray[j] = ray[0];  // a packet's idle lanes are still read
+                    continue;
+                }
+                Sampler& sampler = jobs[base + j].sampler;
+                sampler.set_dimension(dims::kFilm);
+                const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
+                ray[j] = scene.camera().generate_ray(film);
+                // The first vertex's light sample, started before the packet as
+                // trace_path() starts it before each cast.
+                if (nee_ && scene.light_prefetch_pays())
+                    scene.prefetch_light(sampler.at(dims::vertex(1) + dims::kLightSelect));
+            }
+            scene.intersect8(ray, active, sip, hit);
+            for (int j = 0; j < m; ++j) {
+                const PathResult r = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
+                rays += r.rays;
+                float* o = out + size_t(base + j) * stride;
+                o[0] = r.radiance.r, o[1] = r.radiance.g, o[2] = r.radiance.b;
+                o[3] = r.albedo.r, o[4] = r.albedo.g, o[5] = r.albedo.b;
+                o[6] = r.normal.x, o[7] = r.normal.y, o[8] = r.normal.z;
+                o[9] = r.depth;
+            }
+        }
     }
 
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
@@ -52,11 +100,16 @@ protected:
 private:
     int max_depth_ = -1, rr_depth_ = 5;
     bool nee_ = true;
+    int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 
 }  // namespace
 
-PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt) {
+namespace {
+// trace_path(), optionally from a camera ray already traced: `first` is then
+// its hit record and `first_hit` whether it hit.
+PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,
+                           const SurfaceInteraction* first, bool first_hit) {
     PathResult r;
     Color beta(1.f);
     bool prev_delta = true;  // camera rays see emitters without MIS
@@ -64,7 +117,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
     bool aux_done = false;
     float u_light_next = 0.f, u_lobe_next = 0.f;
     for (int depth = 1;; ++depth) {
-        SurfaceInteraction si;
+        SurfaceInteraction traced;
         ++r.rays;
         // Light samples are known before their vertices are: start their cache
         // misses now so they overlap the traversal (this vertex's emitter, the
@@ -78,7 +131,12 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
             scene.prefetch_light(u_light);
             scene.prefetch_light_table(u_light_next);
         }
-        if (!scene.intersect(ray, si)) break;
+        if (depth == 1 && first) {
+            if (!first_hit) break;
+        } else if (!scene.intersect(ray, traced)) {
+            break;
+        }
+        const SurfaceInteraction& si = depth == 1 && first ? *first : traced;
         if (depth == 1) r.depth = si.t;
         const Vec3 wo_world = -ray.d;
 
@@ -149,9 +207,14 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
     }
     return r;
 }
+}  // namespace
+
+PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt) {
+    return trace_path_from(scene, ray, sampler, opt, nullptr, false);
+}
 
 void register_pt(Registry<Integrator>& r) {
-    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee)",
+    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee, batch)",
           [](const Params& p) { return std::make_unique<PathTracer>(p); });
 }
 
