@@ -136,7 +136,7 @@ void Scene::build_lights() {
         const double area = 0.5 * glm::length(glm::cross(e1, e2));
         const double pw = double(luminance(mat.emission)) * area;
         if (!(pw > 0.0)) continue;
-        emitters_.push_back(Emitter{p[0], e1, e2, glm::normalize(glm::cross(e1, e2)), mid, t, 0.f});
+        emitters_.push_back(Emitter{p[0], e1, e2, glm::normalize(glm::cross(e1, e2)), mid, t});
         power.push_back(pw);
         total += pw;
     }
@@ -144,27 +144,24 @@ void Scene::build_lights() {
     // Half of a typical 32 KiB first-level data cache: beyond it, an emitter
     // picked at random is often not cached when its light sample is drawn.
     constexpr size_t kCachedLightBytes = size_t(16) << 10;
-    light_prefetch_pays_ = emitters_.size() * (sizeof(Emitter) + sizeof(AliasBucket)) > kCachedLightBytes;
+    light_prefetch_pays_ = emitters_.size() * sizeof(Emitter) > kCachedLightBytes;
     if (emitters_.empty()) return;
-    for (Emitter& e : emitters_) {
+    for (Emitter& e : emitters_)
         light_pdf_by_material_[e.material] = float(double(luminance(materials_[e.material].emission)) / total);
-        e.pdf_a = light_pdf_by_material_[e.material];
-    }
     // Walker/Vose alias table: bucket i holds emitter i with probability keep
     // and its alias otherwise; every bucket is drawn with probability 1/n.
     const size_t n = emitters_.size();
-    light_alias_.resize(n);
     std::vector<double> scaled(n);
     std::vector<uint32_t> small, large;
     for (size_t i = 0; i < n; ++i) {
         scaled[i] = power[i] / total * double(n);
-        light_alias_[i] = AliasBucket{1.f, uint32_t(i)};
+        emitters_[i].keep = 1.f, emitters_[i].alias = uint32_t(i);
         (scaled[i] < 1.0 ? small : large).push_back(uint32_t(i));
     }
     while (!small.empty() && !large.empty()) {
         const uint32_t s = small.back(), l = large.back();
         small.pop_back();
-        light_alias_[s] = AliasBucket{float(scaled[s]), l};
+        emitters_[s].keep = float(scaled[s]), emitters_[s].alias = l;
         scaled[l] -= 1.0 - scaled[s];
         if (scaled[l] < 1.0) large.pop_back(), small.push_back(l);
     }
@@ -437,13 +434,8 @@ void Scene::visible8(const VisibilityBatch& q, bool out[8]) const {
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
     LightSample ls;
     if (emitters_.empty()) return ls;
-    // One number picks the bucket and, by its fraction, emitter or alias (in
-    // double: the product is exact, so the fraction keeps all of u_sel's bits).
-    const size_t n = emitters_.size();
-    const double x = double(u_sel) * double(n);
-    const size_t b = std::min(size_t(x), n - 1);
-    const AliasBucket bucket = light_alias_[b];
-    const Emitter& e = emitters_[float(x - double(b)) < bucket.keep ? b : bucket.alias];
+    // One number picks the bucket and, by its fraction, emitter or alias.
+    const Emitter& e = emitters_[light_select(u_sel)];
     // Uniform point on the triangle (square-root parameterisation): barycentrics
     // (1 - sqrt(u.x), u.y sqrt(u.x), the rest) of the corners p0, p1, p2.
     const float su = std::sqrt(u.x);
@@ -451,7 +443,7 @@ LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) con
     ls.p = e.p0 + b1 * e.e1 + b2 * e.e2;
     ls.n = e.n;
     ls.prim = e.prim;
-    ls.pdf_a = e.pdf_a;
+    ls.pdf_a = light_pdf_by_material_[e.material];
     ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? materials_[e.material].emission : Color(0.f);
     return ls;
 }

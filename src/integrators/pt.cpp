@@ -70,10 +70,11 @@ protected:
                 sampler.set_dimension(dims::kFilm);
                 const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
                 ray[j] = scene.camera().generate_ray(film);
-                // The first vertex's light sample, started before the packet as
-                // trace_path() starts it before each cast.
+                // The first stage of the first vertex's light prefetch, which
+                // trace_path() does a vertex ahead (the packet's traversal
+                // then hides the load; the second stage follows at the vertex).
                 if (nee_ && scene.light_prefetch_pays())
-                    scene.prefetch_light(sampler.at(dims::vertex(1) + dims::kLightSelect));
+                    scene.prefetch_light_table(sampler.at(dims::vertex(1) + dims::kLightSelect));
             }
             scene.intersect8(ray, active, sip, hit);
             for (int j = 0; j < m; ++j) {

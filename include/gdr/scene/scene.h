@@ -139,21 +139,17 @@ public:
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
     /// Light-sample prefetching, in two stages so that neither stalls: for a
     /// sample_light(ref, u_sel, u) coming up soon, prefetch_light_table(u_sel)
-    /// starts loading the alias-table bucket (nothing is read); later,
-    /// prefetch_light(u_sel) reads that bucket and starts loading the emitter it
-    /// selects. A path tracer calls the first one vertex ahead and the second
-    /// before the ray cast that reaches the vertex. Hints only: results never change.
+    /// starts loading the alias-table bucket, which holds its own emitter
+    /// (nothing is read); later, prefetch_light(u_sel) reads that bucket and
+    /// starts loading its alias if the alias is selected. A path tracer calls
+    /// the first one vertex ahead and the second before the ray cast that
+    /// reaches the vertex. Hints only: results never change.
     void prefetch_light_table(float u_sel) const {
-        if (!emitters_.empty()) prefetch(&light_alias_[light_bucket(u_sel)]);
+        if (!emitters_.empty()) prefetch(&emitters_[light_pick(u_sel).bucket]);
     }
     /// Second stage of light-sample prefetching (see prefetch_light_table).
     void prefetch_light(float u_sel) const {
-        if (emitters_.empty()) return;
-        const size_t n = emitters_.size();
-        const double x = double(u_sel) * double(n);
-        const size_t b = std::min(size_t(x), n - 1);
-        const AliasBucket bucket = light_alias_[b];
-        prefetch(&emitters_[float(x - double(b)) < bucket.keep ? b : bucket.alias]);
+        if (!emitters_.empty()) prefetch(&emitters_[light_select(u_sel)]);
     }
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
@@ -179,9 +175,26 @@ public:
 
 private:
     void build_lights();
-    // The alias-table bucket u_sel falls in.
-    size_t light_bucket(float u_sel) const {
-        return std::min(size_t(double(u_sel) * double(emitters_.size())), emitters_.size() - 1);
+    // The alias-table bucket u_sel falls in, and u_sel's fraction within it
+    // (in double: the product is exact, so the fraction keeps all of u_sel's
+    // bits). 32-bit counts convert in one instruction each.
+    struct LightPick {
+        uint32_t bucket;
+        float fraction;
+    };
+    LightPick light_pick(float u_sel) const {
+        const uint32_t n = uint32_t(emitters_.size());
+        const double x = double(u_sel) * double(n);
+        const uint32_t b = std::min(uint32_t(int64_t(x)), n - 1);
+        return {b, float(x - double(b))};
+    }
+    // The emitter sample_light picks with u_sel: the bucket's own, or its
+    // alias (a select, not a branch: the choice is a coin flip per sample).
+    uint32_t light_select(float u_sel) const {
+        const LightPick k = light_pick(u_sel);
+        const Emitter& e = emitters_[k.bucket];
+        const uint32_t take_alias = -uint32_t(!(k.fraction < e.keep));  // all ones or zero
+        return k.bucket ^ ((k.bucket ^ e.alias) & take_alias);
     }
     // A cache-line prefetch the optimiser cannot drop (GCC discards
     // __builtin_prefetch in some inlined contexts at -O2).
@@ -200,27 +213,26 @@ private:
     static constexpr uint32_t kSmooth = 1u << 31;   // vertex normals differ from the face normal
     static constexpr uint32_t kHasUv = 1u << 30;    // texture coordinates are not all zero
     static constexpr uint32_t kMaterialMask = kHasUv - 1;
-    // An emitting triangle as sample_light needs it, in one cache line.
+    // An emitting triangle as sample_light needs it, and bucket i of
+    // Walker's alias table (keep emitter i with probability keep, else take
+    // alias), in one cache line: most picks keep their bucket's emitter and
+    // so read one line, not a bucket's and then an emitter's.
     struct alignas(64) Emitter {
         Vec3 p0, e1, e2;      // corner and edges
         Vec3 n;               // unit front normal
-        uint32_t material;    // index into materials_ (emitted radiance)
+        uint32_t material;    // index into materials_ (emitted radiance, light_pdf_by_material_)
         uint32_t prim;        // triangle id
-        float pdf_a;          // area density of sampling a point on it (1/m^2)
+        float keep = 1.f;     // alias table: probability of keeping this bucket's emitter
+        uint32_t alias = 0;   // alias table: the emitter taken otherwise
     };
-    // One bucket of Walker's alias table: keep emitter i with probability keep, else take alias.
-    struct AliasBucket {
-        float keep;
-        uint32_t alias;
-    };
+    static_assert(sizeof(Emitter) == 64, "an emitter and its alias bucket fill one cache line");
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     Camera camera_;
     SceneStats stats_;
     float radius_ = 1.f;
     std::vector<uint32_t> hit_info_;        // per triangle: material | kSmooth | kHasUv
-    std::vector<Emitter> emitters_;         // emitting triangles, for sample_light()
-    std::vector<AliasBucket> light_alias_;  // power-proportional emitter selection in O(1)
+    std::vector<Emitter> emitters_;         // emitting triangles and the alias table over them, for sample_light()
     bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
     void* rtc_device_ = nullptr;
