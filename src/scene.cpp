@@ -112,6 +112,18 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         }
         hit_info_[t] = info;
     }
+    // Flat triangles' frames, when the table stays small enough to be cached:
+    // a hit then reads its frame instead of computing it (a square root and
+    // two divisions on the way from the hit to the next ray). Big scenes keep
+    // computing it: there a table read would often miss the cache.
+    constexpr size_t kFrameTableBytes = size_t(1) << 20;
+    if (mesh_.size() * sizeof(Frame) <= kFrameTableBytes) {
+        flat_frames_.resize(mesh_.size());
+        for (size_t t = 0; t < mesh_.size(); ++t) {
+            const Vec3* p = &mesh_.positions[3 * t];
+            flat_frames_[t] = Frame(glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0])));
+        }
+    }
     build_lights();
 }
 
@@ -300,6 +312,11 @@ void Scene::fill_hit_point(const Ray& ray, uint32_t t, float b1, float b2, float
 void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3& ng, float tfar,
                      SurfaceInteraction& si) const {
     fill_hit_point(ray, t, b1, b2, tfar, si);
+    if (!flat_frames_.empty() && !(hit_info_[t] & kSmooth)) {
+        si.frame = flat_frames_[t];
+        si.ng = si.frame.n;
+        return;
+    }
     // Embree's Ng is cross(p1 - p0, p2 - p0), our winding.
     si.ng = glm::normalize(ng);
     Vec3 ns = si.ng;

@@ -232,6 +232,7 @@ private:
     SceneStats stats_;
     float radius_ = 1.f;
     std::vector<uint32_t> hit_info_;        // per triangle: material | kSmooth | kHasUv
+    std::vector<Frame> flat_frames_;        // per triangle: its face frame, or empty (a big scene)
     std::vector<Emitter> emitters_;         // emitting triangles and the alias table over them, for sample_light()
     bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
