@@ -116,7 +116,7 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
     bool prev_delta = true;  // camera rays see emitters without MIS
     float prev_pdf_w = 0.f;
     bool aux_done = false;
-    float u_light_next = 0.f, u_lobe_next = 0.f;
+    Vec2 u_sel_next(0.f);  // the next vertex's emitter and lobe numbers
     for (int depth = 1;; ++depth) {
         SurfaceInteraction traced;
         ++r.rays;
@@ -124,10 +124,11 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
         // misses now so they overlap the traversal (this vertex's emitter, the
         // next vertex's alias-table bucket).
         // The emitter and lobe numbers are one pair (one hash): both are drawn a vertex ahead.
-        const float u_light = depth == 1 ? sampler.at(dims::vertex(depth) + dims::kLightSelect) : u_light_next;
-        const float u_lobe = depth == 1 ? sampler.at(dims::vertex(depth) + dims::kBsdfLobe) : u_lobe_next;
-        u_light_next = sampler.at(dims::vertex(depth + 1) + dims::kLightSelect);
-        u_lobe_next = sampler.at(dims::vertex(depth + 1) + dims::kBsdfLobe);
+        const Vec2 u_sel = depth == 1 ? sampler.at2(dims::vertex(depth) + dims::kLightSelect) : u_sel_next;
+        const float u_light = u_sel.x, u_lobe = u_sel.y;
+        static_assert(dims::kBsdfLobe == dims::kLightSelect + 1);
+        u_sel_next = sampler.at2(dims::vertex(depth + 1) + dims::kLightSelect);
+        const float u_light_next = u_sel_next.x;
         if (opt.nee && scene.light_prefetch_pays()) {
             scene.prefetch_light(u_light);
             scene.prefetch_light_table(u_light_next);
@@ -170,12 +171,9 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
         // The continuation is sampled before the light: the two are independent,
         // so their dependency chains (hash, warp, division) overlap instead of
         // the BSDF's running alone between the shadow ray and the next cast.
-        const auto bs = bsdf.sample(wo, si.uv, u_lobe,
-                                    Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1)));
+        const auto bs = bsdf.sample(wo, si.uv, u_lobe, sampler.at2(block + dims::kBsdfDir));
         if (opt.nee && !pure_delta && scene.has_lights()) {
-            const LightSample ls = scene.sample_light(si.p, u_light,
-                                                      Vec2(sampler.at(block + dims::kLightPoint),
-                                                           sampler.at(block + dims::kLightPoint + 1)));
+            const LightSample ls = scene.sample_light(si.p, u_light, sampler.at2(block + dims::kLightPoint));
             const Vec3 d = ls.p - si.p;
             const float dist2 = glm::dot(d, d);
             if (!is_black(ls.radiance) && dist2 > 0.f) {

@@ -24,8 +24,8 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
     // then does not wait for memory.
     float u_light, u_lobe;
     const auto draw_ahead = [&](int depth) {
-        u_light = sampler.at(dims::vertex(depth) + dims::kLightSelect);
-        u_lobe = sampler.at(dims::vertex(depth) + dims::kBsdfLobe);
+        const Vec2 u = sampler.at2(dims::vertex(depth) + dims::kLightSelect);  // with kBsdfLobe
+        u_light = u.x, u_lobe = u.y;
         if (scene.light_prefetch_pays()) scene.prefetch_light(u_light);
     };
     draw_ahead(1);  // the first hit is already known: as early as it gets
@@ -41,9 +41,9 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         const bool last = opt.max_depth > 0 && depth >= opt.max_depth;
 
         const uint32_t block = dims::vertex(depth);
-        const Vec2 u_point(sampler.at(block + dims::kLightPoint), sampler.at(block + dims::kLightPoint + 1));
+        const Vec2 u_point = sampler.at2(block + dims::kLightPoint);
         x.u_lobe = u_lobe;
-        x.u_dir = Vec2(sampler.at(block + dims::kBsdfDir), sampler.at(block + dims::kBsdfDir + 1));
+        x.u_dir = sampler.at2(block + dims::kBsdfDir);
         // Numbers are drawn only where they are read: roulette from rr_depth
         // on, classification only for probabilistic classification.
         if (opt.classify_numbers) x.u_classify = sampler.at(block + dims::kClassify);

@@ -4,6 +4,7 @@
 // replay exactly the numbers another pixel or frame used.
 #pragma once
 
+#include <cassert>
 #include <cstdint>
 
 #include "gdr/core/math.h"
@@ -56,10 +57,23 @@ public:
         const uint64_t h = mix64(stream_ ^ (uint64_t(dim >> 1) * 0xd1b54a32d192ed03ull));
         return dim & 1u ? to_unit_float_low(h) : to_unit_float(h);
     }
+    /// The numbers at an even dimension and the next one, {at(dim), at(dim
+    /// + 1)}, from their one hash. Use it where dim is not a compile-time
+    /// constant: the compiler cannot then see that the two at() calls share a
+    /// hash, and computes it twice.
+    Vec2 at2(uint32_t dim) const {
+        assert((dim & 1u) == 0u);
+        const uint64_t h = mix64(stream_ ^ (uint64_t(dim >> 1) * 0xd1b54a32d192ed03ull));
+        return {to_unit_float(h), to_unit_float_low(h)};
+    }
     /// Next uniform number in [0,1).
     float next1d() { return at(dim_++); }
     /// Next pair of uniform numbers in [0,1)^2.
     Vec2 next2d() {
+        if ((dim_ & 1u) == 0u) {
+            dim_ += 2;
+            return at2(dim_ - 2);
+        }
         const float a = next1d();
         return {a, next1d()};
     }
