@@ -9,6 +9,7 @@
 #pragma once
 
 #include "gdr/core/math.h"
+#include "gdr/scene/warp.h"
 
 namespace gdr {
 
@@ -58,13 +59,14 @@ inline Vec3 ggx_sample_visible_normal(const Vec3& wo, float alpha, const Vec2& u
     // Stretch to the alpha = 1 configuration, where visible normals are a projected hemisphere.
     const Vec3 vh = glm::normalize(Vec3(alpha * wo.x, alpha * wo.y, wo.z));
     const float lensq = vh.x * vh.x + vh.y * vh.y;
-    const Vec3 t1 = lensq > 0.f ? Vec3(-vh.y, vh.x, 0.f) / std::sqrt(lensq) : Vec3(1.f, 0.f, 0.f);
+    const Vec3 t1 = lensq > 0.f ? Vec3(-vh.y, vh.x, 0.f) * (1.f / std::sqrt(lensq)) : Vec3(1.f, 0.f, 0.f);
     const Vec3 t2 = glm::cross(vh, t1);
-    // Uniform disk point, then warp the half of the disk hidden by the projection.
-    const float r = std::sqrt(u.x);
-    const float phi = 2.f * kPi * u.y;
-    const float p1 = r * std::cos(phi);
-    float p2 = r * std::sin(phi);
+    // Uniform disk point, then warp the half of the disk hidden by the
+    // projection. Any uniform map of the disk will do; the concentric one
+    // needs no sin/cos call (Heitz's listing uses polar coordinates).
+    const Vec2 disk = warp::square_to_uniform_disk(u);
+    const float p1 = disk.x;
+    float p2 = disk.y;
     const float s = 0.5f * (1.f + vh.z);
     p2 = (1.f - s) * safe_sqrt(1.f - p1 * p1) + s * p2;
     const Vec3 nh = p1 * t1 + p2 * t2 + safe_sqrt(1.f - p1 * p1 - p2 * p2) * vh;
@@ -95,13 +97,22 @@ inline GgxReflection ggx_reflection(const Vec3& wo, const Vec3& wi, float alpha)
     GgxReflection r;
     if (wo.z <= 0.f || wi.z <= 0.f) return r;
     r.h = glm::normalize(wo + wi);
-    const float d = ggx_d(r.h, alpha), lambda_o = ggx_lambda(wo, alpha);
-    const float wo_h = glm::dot(wo, r.h);
-    // smith_g2 and smith_g1 with their side tests, written out to share Lambda(wo).
-    const bool wo_visible = wo_h * wo.z > 0.f;
-    if (wo_visible && glm::dot(wi, r.h) * wi.z > 0.f)
-        r.value = d * (1.f / (1.f + lambda_o + ggx_lambda(wi, alpha))) / (4.f * wo.z * wi.z);
-    if (wo_visible) r.pdf = (1.f / (1.f + lambda_o)) * wo_h * d / wo.z / (4.f * wo_h);  // wo.z > 0, so wo_h > 0
+    // The Smith terms through S(w) = cos sqrt(1 + alpha^2 tan^2) = sqrt(cos^2
+    // + alpha^2 sin^2), so that 1 + Lambda(w) = (cos + S) / (2 cos). Then
+    //   value = D G2 / (4 cos_o cos_i) = D / (2 (S_o cos_i + S_i cos_o)),
+    //   pdf   = D G1(wo) / (4 cos_o)    = D / (2 (cos_o + S_o)):
+    // the same quantities as smith_g2 and smith_g1 give, with one division
+    // each instead of four and five (this is on every glossy vertex's path).
+    const float a2 = alpha * alpha;
+    const float co2 = wo.z * wo.z, ci2 = wi.z * wi.z;
+    const float s_o = std::sqrt(co2 + a2 * std::max(0.f, 1.f - co2));
+    const float s_i = std::sqrt(ci2 + a2 * std::max(0.f, 1.f - ci2));
+    const float k = r.h.z * r.h.z * (a2 - 1.f) + 1.f;
+    const float d2 = 2.f * (kPi * k * k);  // D / 2 = a2 / d2 (ggx_d; h.z > 0 here)
+    // The side tests of smith_g1/g2: wo.z > 0, so only the microfacet's side remains.
+    const bool wo_visible = glm::dot(wo, r.h) > 0.f;
+    if (wo_visible && glm::dot(wi, r.h) > 0.f) r.value = a2 / (d2 * (s_o * wi.z + s_i * wo.z));
+    if (wo_visible) r.pdf = a2 / (d2 * (wo.z + s_o));
     return r;
 }
 
