@@ -175,18 +175,20 @@ public:
 
 private:
     void build_lights();
-    // The alias-table bucket u_sel falls in, and u_sel's fraction within it
-    // (in double: the product is exact, so the fraction keeps all of u_sel's
-    // bits). 32-bit counts convert in one instruction each.
+    // The alias-table bucket u_sel falls in, and u_sel's fraction within it,
+    // in 32.32 fixed point: u_sel 2^32 is exact for the sampler's numbers
+    // (multiples of 2^-24), so the product with the emitter count, and the
+    // fraction's rounding to float, are exact too (a double-precision chain
+    // of conversions would give the same bits, more slowly). The clamp only
+    // matters for numbers outside [0, 1).
     struct LightPick {
         uint32_t bucket;
         float fraction;
     };
     LightPick light_pick(float u_sel) const {
-        const uint32_t n = uint32_t(emitters_.size());
-        const double x = double(u_sel) * double(n);
-        const uint32_t b = std::min(uint32_t(int64_t(x)), n - 1);
-        return {b, float(x - double(b))};
+        const uint64_t n = emitters_.size();
+        const uint64_t fixed = uint64_t(int64_t(u_sel * 0x1p32f)) * n;
+        return {uint32_t(std::min(fixed >> 32, n - 1)), float(int64_t(uint32_t(fixed))) * 0x1p-32f};
     }
     // The emitter sample_light picks with u_sel: the bucket's own, or its
     // alias (a select, not a branch: the choice is a coin flip per sample).
