@@ -12,9 +12,14 @@ namespace gdr::warp {
 /// sin and cos of x for |x| <= pi/4 (Taylor to x^9 / x^10: error below 4e-8,
 /// under float rounding), without the range reduction and calls of std::sin/cos.
 inline Vec2 sincos_quarter(float x) {
-    const float x2 = x * x;
-    const float s = x * (1.f + x2 * (-1.f / 6.f + x2 * (1.f / 120.f + x2 * (-1.f / 5040.f + x2 * (1.f / 362880.f)))));
-    const float c = 1.f + x2 * (-0.5f + x2 * (1.f / 24.f + x2 * (-1.f / 720.f + x2 * (1.f / 40320.f + x2 * (-1.f / 3628800.f)))));
+    // Estrin's scheme (pairs of terms in x^2, then in x^4): about half the
+    // dependent operations of Horner's, and this sits on the path from a
+    // sample's numbers to its next ray.
+    const float x2 = x * x, x4 = x2 * x2;
+    const float s = x * ((1.f + x2 * (-1.f / 6.f)) +
+                         x4 * ((1.f / 120.f + x2 * (-1.f / 5040.f)) + x4 * (1.f / 362880.f)));
+    const float c = (1.f + x2 * -0.5f) +
+                    x4 * ((1.f / 24.f + x2 * (-1.f / 720.f)) + x4 * (1.f / 40320.f + x2 * (-1.f / 3628800.f)));
     return {s, c};
 }
 
