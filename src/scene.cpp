@@ -25,6 +25,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         mat.min_roughness = mat.bsdf->min_roughness();
         mat.pure_delta = mat.bsdf->is_pure_delta();
         mat.wo_side_only = mat.bsdf->wo_side_only();
+        mat.black = mat.bsdf->is_black();
     }
     // Validate and compact: non-finite vertices are an error, zero-area triangles are dropped.
     TriangleMesh m;

@@ -697,3 +697,24 @@ TEST_CASE("bsdf: wo_side_only holds for the BSDFs that claim it and is claimed b
         }
     }
 }
+
+TEST_CASE("bsdf: is_black is claimed only where f is zero for all directions", "[bsdf]") {
+    // Path tracers end a path at a black surface, so the claim must hold
+    // exactly: zero f and no scattered sample anywhere; a dark but non-zero
+    // albedo, or any BSDF that reflects something, must not claim it.
+    const auto black = make_lambertian(make_constant_texture(Color(0.f)));
+    CHECK(black->is_black());
+    CHECK_FALSE(make_lambertian(make_constant_texture(Color(0.f, 0.f, 1e-6f)))->is_black());
+    CHECK_FALSE(make_plastic(make_constant_texture(Color(0.f)), Color(0.1f), 0.3f)->is_black());
+    CHECK_FALSE(make_rough_conductor(Color(0.5f), 0.2f)->is_black());
+    CHECK_FALSE(make_mirror(Color(0.8f))->is_black());
+    CHECK_FALSE(make_dielectric(1.5f)->is_black());
+    Sampler rng(SampleKey{4, 0, 0, 0});
+    for (int i = 0; i < 2000; ++i) {
+        const Vec3 wo = warp::square_to_uniform_sphere(rng.next2d()), wi = warp::square_to_uniform_sphere(rng.next2d());
+        const Vec2 uv = rng.next2d();
+        REQUIRE(is_black(black->eval(wo, wi, uv)));
+        const auto s = black->sample(wo, uv, rng.next1d(), rng.next2d());
+        REQUIRE((!s || is_black(s->f)));
+    }
+}

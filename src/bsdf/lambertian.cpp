@@ -46,6 +46,7 @@ public:
     Color albedo(const Vec2& uv) const override { return kd_->eval(uv); }
     float min_roughness() const override { return 1.f; }
     bool wo_side_only() const override { return true; }
+    bool is_black() const override { return constant_ && gdr::is_black(f_const_); }
 
 private:
     // kd / pi; kept for untextured materials, which are most of them, to save

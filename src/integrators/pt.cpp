@@ -163,6 +163,10 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
             r.normal = si.frame.n;
             aux_done = true;
         }
+        // A black surface (an emitter with Kd 0) adds nothing by a light
+        // sample and scatters nothing: its light sample would only cost a
+        // cache miss on a large emitter table.
+        if (si.material->black) break;
         // Numbers are drawn by address, only when needed: the vertex block's
         // layout (path_dims.h) is the same whether or not a strategy runs.
         const uint32_t block = dims::vertex(depth);

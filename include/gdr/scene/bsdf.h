@@ -85,6 +85,10 @@ public:
     /// reach the vertex from different directions on one side then scatter
     /// with the same values, and a shift can reuse the base's.
     virtual bool wo_side_only() const { return false; }
+    /// True if f is zero for every pair of directions and every uv (a black
+    /// absorber, e.g. an emitter's Kd 0): a path that reaches it ends there
+    /// after its emission, whatever it would sample.
+    virtual bool is_black() const { return false; }
 
     /// True if the BSDF has only delta lobes.
     bool is_pure_delta() const { return (flags() & (kDiffuse | kGlossy)) == 0; }

@@ -24,6 +24,7 @@ struct Material {
     float min_roughness = 1.f;
     bool pure_delta = false;      ///< See min_roughness.
     bool wo_side_only = false;    ///< bsdf->wo_side_only(), likewise.
+    bool black = false;           ///< bsdf->is_black(), likewise.
 };
 
 /// A triangle soup ready for the BVH: three corners per triangle.
