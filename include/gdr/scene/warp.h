@@ -30,13 +30,19 @@ inline Vec2 sincos_quarter(float x) {
 /// the wedge's axis, where a short polynomial is exact to float precision.
 inline Vec2 square_to_uniform_disk(const Vec2& u) {
     const float a = 2.f * u.x - 1.f, b = 2.f * u.y - 1.f;
-    const bool horizontal = std::abs(a) > std::abs(b);
-    const float r = horizontal ? a : b;       // signed radius along the wedge's axis
-    const float q = horizontal ? b : a;       // position across the wedge
+    // The selects are bit masks: written as ?:, GCC compiles them to branches,
+    // which mispredict on half the samples.
+    const uint32_t horizontal = -uint32_t(std::abs(a) > std::abs(b));  // all ones or zero
+    const auto pick = [horizontal](float if_h, float if_v) {
+        return std::bit_cast<float>((std::bit_cast<uint32_t>(if_h) & horizontal) |
+                                    (std::bit_cast<uint32_t>(if_v) & ~horizontal));
+    };
+    const float r = pick(a, b);  // signed radius along the wedge's axis
+    const float q = pick(b, a);  // position across the wedge
     if (r == 0.f) return Vec2(0.f);
     const Vec2 sc = sincos_quarter((kPi / 4.f) * (q / r));
     // Right/left wedges: phi = pi/4 q/r; top/bottom: phi = pi/2 - pi/4 q/r (sin and cos swap).
-    return horizontal ? Vec2(r * sc.y, r * sc.x) : Vec2(r * sc.x, r * sc.y);
+    return {r * pick(sc.y, sc.x), r * pick(sc.x, sc.y)};
 }
 
 /// Inverse of square_to_uniform_disk (point in the unit disk -> [0,1]^2).
