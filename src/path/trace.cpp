@@ -50,6 +50,12 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
         sampler.set_dimension(block + dims::kPerVertex);
 
         const Bsdf& bsdf = *x.si.material->bsdf;
+        // The continuation is sampled before the light: the two are
+        // independent, so their dependency chains overlap instead of the
+        // BSDF's running alone between the shadow ray and the next cast.
+        // (Built in place: assigning an optional would copy it through memory.)
+        const std::optional<BsdfSample> bs =
+            last ? std::optional<BsdfSample>() : bsdf.sample(x.wo, x.si.uv, x.u_lobe, x.u_dir);
         if (!last && scene.has_lights() && !x.si.material->pure_delta) {
             x.nee.valid = true;
             assign_in_place(x.nee.light, [&] { return scene.sample_light(x.si.p, u_light, u_point); });
@@ -63,7 +69,6 @@ void continue_camera_path(const Scene& scene, Sampler& sampler, const TraceOptio
             }
         }
         if (last) return;
-        const auto bs = bsdf.sample(x.wo, x.si.uv, x.u_lobe, x.u_dir);
         if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) return;
         // The throughput and the next ray read the sample, not its copy in the
         // vertex: that copy moves 16 bytes at a time, and reading it back at
