@@ -163,6 +163,48 @@ TEST_CASE("scene: hits report position, winding normal, material and one-sided e
     CHECK(scene.bounding_radius() > 1.f);
 }
 
+TEST_CASE("scene: flat hits get the face's unit normal and frame, from the table or computed", "[scene]") {
+    // Small scenes read flat triangles' frames from a table built at load;
+    // big ones (over 1 MiB of frames) compute them per hit from Embree's
+    // normal. Both must give the unit winding normal and an orthonormal
+    // frame around it, for the single-ray and the packet query alike.
+    const Vec3 a(-1, -1, -2), b(1, -1, -2), c(0.2f, 1, -2.5f);  // tilted, so no axis-aligned shortcut
+    const Vec3 n = glm::normalize(glm::cross(b - a, c - a));
+    for (const size_t fillers : {size_t(0), size_t(40000)}) {
+        std::vector<Vec3> corners = {a, b, c};
+        for (size_t i = 0; i < fillers; ++i) {  // tiny triangles far behind the camera
+            const Vec3 o(float(i % 200), float(i / 200), 50.f);
+            corners.insert(corners.end(), {o, o + Vec3(0.1f, 0, 0), o + Vec3(0, 0.1f, 0)});
+        }
+        const Scene scene(soup(corners), one_material(), Camera(), "mem");
+        const Ray rays[8] = {{Vec3(0.1f, 0.f, 0.f), Vec3(0, 0, -1)}, {Vec3(-0.2f, -0.3f, 0.f), Vec3(0, 0, -1)},
+                             {Vec3(0.f), Vec3(0, 0, -1)}, {Vec3(0.f), Vec3(0, 0, -1)},
+                             {Vec3(0.f), Vec3(0, 0, -1)}, {Vec3(0.f), Vec3(0, 0, -1)},
+                             {Vec3(0.f), Vec3(0, 0, -1)}, {Vec3(0.f), Vec3(0, 0, -1)}};
+        SurfaceInteraction single, packet[8];
+        SurfaceInteraction* const sp[8] = {packet, packet + 1, packet + 2, packet + 3,
+                                           packet + 4, packet + 5, packet + 6, packet + 7};
+        const bool active[8] = {true, true, false, false, false, false, false, false};
+        bool hit[8];
+        scene.intersect8(rays, active, sp, hit);
+        for (int i = 0; i < 2; ++i) {
+            INFO("fillers " << fillers << ", ray " << i);
+            REQUIRE(scene.intersect(rays[i], single));
+            REQUIRE(hit[i]);
+            for (const SurfaceInteraction* si : {&single, &packet[i]}) {
+                CHECK(glm::length(si->ng - n) < 1e-6f);
+                CHECK(glm::length(si->frame.n - n) < 1e-6f);
+                CHECK(std::abs(glm::dot(si->frame.s, si->frame.t)) < 1e-6f);
+                CHECK(std::abs(glm::dot(si->frame.s, si->frame.n)) < 1e-6f);
+                CHECK(std::abs(glm::length(si->frame.s) - 1.f) < 1e-6f);
+                CHECK(std::abs(glm::length(si->frame.t) - 1.f) < 1e-6f);
+                // Right-handed, as Frame builds it: s x t = n.
+                CHECK(glm::length(glm::cross(si->frame.s, si->frame.t) - si->frame.n) < 1e-5f);
+            }
+        }
+    }
+}
+
 TEST_CASE("scene: a mirroring transform keeps emitters facing the same way", "[scene]") {
     // Scaling x by -1 reverses the winding; the loader must swap corners so the
     // emitting side (the +z side of the wall) stays the emitting side.
