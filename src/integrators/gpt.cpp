@@ -235,10 +235,7 @@ public:
         trace_.rr_depth = int(p.get_int("rr_depth", 5));
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
-        const long long batch = p.get_int("batch", kMaxBatch);
-        if (batch < 1 || batch > kMaxBatch)
-            throw ParameterError("gpt: batch must be between 1 and " + std::to_string(kMaxBatch));
-        batch_ = int(batch);
+        batch_ = batch_param(p, "gpt", kMaxBatch);
         const std::string rec = p.get_choice("reconstruct", "l1+l2", {"l1+l2", "l1", "l2", "none"});
         solve_l1_ = rec == "l1+l2" || rec == "l1";
         solve_l2_ = rec == "l1+l2" || rec == "l2";

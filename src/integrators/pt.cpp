@@ -21,11 +21,9 @@ public:
         max_depth_ = int(p.get_int("max_depth", -1));
         rr_depth_ = int(p.get_int("rr_depth", 5));
         nee_ = p.get_bool("nee", true);
-        const long long batch = p.get_int("batch", kPacket);
         if (max_depth_ == 0 || max_depth_ < -1) throw ParameterError("pt: max_depth must be -1 (unlimited) or >= 1");
         if (rr_depth_ < 1) throw ParameterError("pt: rr_depth must be >= 1");
-        if (batch < 1 || batch > kPacket) throw ParameterError("pt: batch must be between 1 and " + std::to_string(kPacket));
-        batch_ = int(batch);
+        batch_ = batch_param(p, "pt", kPacket);
     }
 
     std::string describe() const override {
@@ -104,9 +102,6 @@ private:
     int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 
-}  // namespace
-
-namespace {
 // trace_path(), optionally from a camera ray already traced: `first` is then
 // its hit record and `first_hit` whether it hit.
 PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,

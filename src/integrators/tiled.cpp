@@ -64,6 +64,13 @@ void TiledIntegrator::sample_batch(const Scene& scene, SampleJob* jobs, int n, f
     for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
 }
 
+int TiledIntegrator::batch_param(const Params& p, const std::string& who, int max_batch) {
+    const long long batch = p.get_int("batch", max_batch);
+    if (batch < 1 || batch > max_batch)
+        throw ParameterError(who + ": batch must be between 1 and " + std::to_string(max_batch));
+    return int(batch);
+}
+
 TiledIntegrator::TiledIntegrator() : buffers_(std::make_unique<Buffers>()) {}
 TiledIntegrator::~TiledIntegrator() = default;
 

@@ -112,6 +112,10 @@ protected:
     /// The most jobs render() passes to sample_batch() at once (1: sample() per
     /// job; render() takes at most 16).
     virtual int batch_size() const { return 1; }
+    /// An integrator's `batch` parameter (jobs per sample_batch() call),
+    /// `max_batch` by default; throws ParameterError naming integrator `who`
+    /// outside 1..max_batch.
+    static int batch_param(const Params& p, const std::string& who, int max_batch);
     /// Turns accumulated slots into output layers; the default writes each slot
     /// as a layer of its name and its variance as "<name>_variance". Runs in
     /// the render's thread arena, so its parallel loops keep to its threads.
