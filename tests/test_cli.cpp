@@ -88,6 +88,31 @@ TEST_CASE("cli: bad command lines name the option", "[cli][errors]") {
     CHECK_THAT(error_of({"render", ok, "--resume", out("none.exr"), "-o", out("x.exr")}), Contains("none.exr"));
 }
 
+TEST_CASE("cli: out-of-range and non-finite option values are refused, not clamped or ignored", "[cli][errors]") {
+    const std::string ok = kScenes + "bad/ok.json";
+    const auto render_with = [&](const std::string& opt, const std::string& v) {
+        return error_of({"render", ok, opt, v, "-o", out("x.exr")});
+    };
+    // A negative seed once meant "the scene's seed", silently.
+    CHECK_THAT(render_with("--seed", "-1"), Contains("--seed") && Contains(">= 0"));
+    // strtoll saturates; the clamped value would be another setting than asked for.
+    CHECK_THAT(render_with("--seed", "99999999999999999999"), Contains("--seed") && Contains("out of range"));
+    // NaN and 0 once fell through to an spp render, silently.
+    CHECK_THAT(render_with("--time", "nan"), Contains("--time") && Contains("finite"));
+    CHECK_THAT(render_with("--time", "inf"), Contains("--time") && Contains("finite"));
+    CHECK_THAT(render_with("--time", "0"), Contains("--time") && Contains("positive"));
+    CHECK_THAT(render_with("--exposure", "nan"), Contains("--exposure"));
+    // Once truncated to an int.
+    CHECK_THAT(render_with("--threads", "99999999999"), Contains("--threads") && Contains("between"));
+    // The sampler numbers a pixel's samples in 32 bits.
+    CHECK_THAT(render_with("--spp", "5000000000"), Contains("2^32"));
+    CHECK_THAT(error_of({"check-shift", ok, "--seed", "-4"}), Contains("--seed"));
+    CHECK_THAT(error_of({"check-shift", ok, "--paths", "0"}), Contains("--paths"));
+    CHECK_THAT(error_of({"check-shift", ok, "--max-depth", "0"}), Contains("--max-depth"));
+    CHECK_THAT(error_of({"check-shift", ok, "--threshold", "-1"}), Contains("--threshold"));
+    CHECK_FALSE(fs::exists(out("x.exr")));
+}
+
 TEST_CASE("cli: zero-area triangles do not stop a render", "[cli]") {
     REQUIRE(cli::run({"render", kScenes + "bad/degenerate-obj.json", "--spp", "2", "-o", out("degenerate.exr")}) == 0);
     CHECK(read_exr(out("degenerate.exr")).has("color"));
@@ -134,4 +159,23 @@ TEST_CASE("cli: --resume continues the sample sequence: 8 + 8 spp equals 16 spp"
     CHECK_THAT(error_of({"render", scene, "--spp", "8", "--set", "max_depth=3", "--resume", out("first.exr"), "-o",
                          out("bad.exr")}),
                Contains("parameters"));
+}
+
+TEST_CASE("cli: --resume names a malformed metadata entry before rendering", "[cli][errors]") {
+    const std::string scene = kScenes + "cornell-small.json";
+    REQUIRE(cli::run({"render", scene, "--spp", "1", "-o", out("meta.exr")}) == 0);
+    const FrameBuffer good = read_exr(out("meta.exr"));
+    for (const char* key : {"seed", "spp", "first_sample", "render_seconds"}) {
+        FrameBuffer bad = good;
+        bad.metadata()[key] = "-2x";
+        write_exr(out("meta-bad.exr"), bad);
+        const std::string msg = error_of({"render", scene, "--spp", "1", "--resume", out("meta-bad.exr"), "-o", out("meta-out.exr")});
+        CHECK_THAT(msg, Contains("meta-bad.exr") && Contains(key));
+        CHECK_FALSE(fs::exists(out("meta-out.exr")));
+    }
+    FrameBuffer old = good;
+    old.metadata().erase("first_sample");
+    write_exr(out("meta-old.exr"), old);
+    CHECK_THAT(error_of({"render", scene, "--spp", "1", "--resume", out("meta-old.exr"), "-o", out("meta-out.exr")}),
+               Contains("first_sample"));
 }

@@ -1,3 +1,5 @@
+#include <limits>
+
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
@@ -15,17 +17,22 @@ int check_shift(const std::vector<std::string>& args) {
     while (a.more()) {
         const std::string o = a.next();
         if (o == "--shift") shift_name = a.value(o);
-        else if (o == "--paths") opt.paths = int(a.int_value(o));
-        else if (o == "--seed") opt.seed = uint64_t(a.int_value(o));
-        else if (o == "--max-depth") opt.max_depth = int(a.int_value(o));
-        else if (o == "--threshold") cfg.threshold = float(a.real_value(o));
+        else if (o == "--paths") opt.paths = int(a.int_value(o, 1, std::numeric_limits<int>::max()));
+        else if (o == "--seed") opt.seed = uint64_t(a.int_value(o, 0, std::numeric_limits<long long>::max()));
+        else if (o == "--max-depth") {
+            opt.max_depth = int(a.int_value(o, -1, 1024));
+            if (opt.max_depth == 0) throw ParameterError("option --max-depth must be -1 (unlimited) or >= 1, got 0");
+        }
+        else if (o == "--threshold") {
+            cfg.threshold = float(a.real_value(o));
+            if (cfg.threshold < 0.f) throw ParameterError("option --threshold must be >= 0");
+        }
         else if (o == "--probabilistic") cfg.probabilistic = true;
         else if (!o.empty() && o[0] == '-') throw ParameterError("check-shift: unknown option '" + o + "'\n" + usage());
         else if (scene_path.empty()) scene_path = o;
         else throw ParameterError("check-shift: unexpected argument '" + o + "'");
     }
     if (scene_path.empty()) throw ParameterError("check-shift: no scene file given\n" + usage());
-    if (opt.paths <= 0) throw ParameterError("check-shift: --paths must be positive");
     const SceneFile sf = load_scene_file(scene_path);
     const auto shift = shift_registry().create(shift_name, Params("--shift"));
     const ShiftReport rep = validate_shift(*sf.scene, *shift, cfg, opt);

@@ -1,6 +1,9 @@
 #include "gdr/cli/commands.h"
 
+#include <cerrno>
+#include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include <fmt/core.h>
 
@@ -16,8 +19,22 @@ std::string ArgReader::value(const std::string& opt) {
 long long ArgReader::int_value(const std::string& opt) {
     const std::string v = value(opt);
     char* end = nullptr;
+    errno = 0;
     const long long x = std::strtoll(v.c_str(), &end, 10);
     if (v.empty() || *end) throw ParameterError("option " + opt + " expects an integer, got '" + v + "'");
+    // strtoll saturates silently; a clamped value would be a different setting than asked for.
+    if (errno == ERANGE) throw ParameterError("option " + opt + ": '" + v + "' is out of range");
+    return x;
+}
+
+long long ArgReader::int_value(const std::string& opt, long long lo, long long hi) {
+    const long long x = int_value(opt);
+    if (x < lo || x > hi)
+        throw ParameterError("option " + opt + " must be " +
+                             (hi == std::numeric_limits<long long>::max()
+                                  ? ">= " + std::to_string(lo)
+                                  : "between " + std::to_string(lo) + " and " + std::to_string(hi)) +
+                             ", got " + std::to_string(x));
     return x;
 }
 
@@ -26,6 +43,8 @@ double ArgReader::real_value(const std::string& opt) {
     char* end = nullptr;
     const double x = std::strtod(v.c_str(), &end);
     if (v.empty() || *end) throw ParameterError("option " + opt + " expects a number, got '" + v + "'");
+    // strtod reads "nan" and "inf"; no option of gdr has a meaning for them.
+    if (!std::isfinite(x)) throw ParameterError("option " + opt + " expects a finite number, got '" + v + "'");
     return x;
 }
 

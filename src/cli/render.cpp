@@ -1,10 +1,12 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <mutex>
 
 #include <fmt/core.h>
@@ -21,6 +23,31 @@
 namespace gdr::cli {
 
 namespace {
+
+// More threads than this is a typing error, not a machine.
+constexpr long long kMaxThreads = 1 << 16;
+
+// A non-negative integer entry `key` of a previous render's metadata (read from `file`).
+uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key) {
+    const std::string& v = fb.metadata().at(key);
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long x = std::strtoull(v.c_str(), &end, 10);
+    if (v.empty() || *end || v[0] == '-' || errno == ERANGE)
+        throw InputError(file + ": metadata entry '" + key + "' is not a sample count or seed: '" + v + "'");
+    return x;
+}
+
+// A previous render's time in seconds from its metadata (read from `file`); 0 if it has none.
+double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
+    const auto it = fb.metadata().find("render_seconds");
+    if (it == fb.metadata().end()) return 0.0;
+    char* end = nullptr;
+    const double x = std::strtod(it->second.c_str(), &end);
+    if (it->second.empty() || *end || !(x >= 0.0))
+        throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
+    return x;
+}
 
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_sigint(int) { g_interrupted = true; }
@@ -71,10 +98,12 @@ int render(const std::vector<std::string>& args) {
         const std::string opt = a.next();
         if (opt == "-o" || opt == "--output") out_path = a.value(opt);
         else if (opt == "--integrator") integrator_name = a.value(opt);
-        else if (opt == "--spp") spp = a.int_value(opt);
-        else if (opt == "--time") time_budget = a.real_value(opt);
-        else if (opt == "--threads") threads = int(a.int_value(opt));
-        else if (opt == "--seed") seed = a.int_value(opt);
+        else if (opt == "--spp") spp = a.int_value(opt, 1, std::numeric_limits<long long>::max());
+        else if (opt == "--time") {
+            time_budget = a.real_value(opt);
+            if (!(time_budget > 0.0)) throw ParameterError("option --time must be positive, got " + fmt::format("{}", time_budget));
+        } else if (opt == "--threads") threads = int(a.int_value(opt, 0, kMaxThreads));
+        else if (opt == "--seed") seed = a.int_value(opt, 0, std::numeric_limits<long long>::max());
         else if (opt == "--set") sets.push_back(a.value(opt));
         else if (opt == "--resume") resume_path = a.value(opt);
         else if (opt == "--exposure") exposure = a.real_value(opt);
@@ -84,19 +113,19 @@ int render(const std::vector<std::string>& args) {
     }
     if (scene_path.empty()) throw ParameterError("render: no scene file given\n" + usage());
     if (out_path.empty()) throw ParameterError("render: no output given (-o OUT.exr)");
-    if (spp == 0 || spp < -1) throw ParameterError("render: --spp must be positive");
-    if (time_budget < 0.0) throw ParameterError("render: --time must be positive");
     if (spp > 0 && time_budget > 0.0) throw ParameterError("render: give either --spp or --time, not both");
-    if (threads < 0) throw ParameterError("render: --threads must be >= 0");
 
     // Resuming continues the previous render's sample sequence, so the merged
     // image equals one longer render.
     FrameBuffer previous;
+    double previous_seconds = 0.0;
     if (!resume_path.empty()) {
         previous = read_exr(resume_path);
         const auto& m = previous.metadata();
-        for (const char* k : {"spp", "seed", "integrator", "scene"})
+        for (const char* k : {"spp", "seed", "first_sample", "integrator", "scene"})
             if (!m.count(k)) throw InputError(resume_path + ": not a gdr render (no '" + std::string(k) + "' entry)");
+        // Checked before rendering, so that a bad entry cannot cost the new samples.
+        previous_seconds = metadata_seconds(previous, resume_path);
     }
 
     const auto t_load = std::chrono::steady_clock::now();
@@ -124,10 +153,16 @@ int render(const std::vector<std::string>& args) {
             throw InputError(resume_path + ": rendered with integrator '" + m.at("integrator") + "', not '" + name + "'");
         if (m.count("integrator_params") && m.at("integrator_params") != integrator->describe())
             throw InputError(resume_path + ": rendered with other integrator parameters:\n" + m.at("integrator_params"));
-        if (seed >= 0 && uint64_t(seed) != std::stoull(m.at("seed")))
+        const uint64_t previous_seed = metadata_count(previous, resume_path, "seed");
+        if (seed >= 0 && uint64_t(seed) != previous_seed)
             throw InputError(resume_path + ": rendered with seed " + m.at("seed") + ", not " + std::to_string(seed));
-        st.seed = std::stoull(m.at("seed"));
-        st.first_sample = std::stoll(m.at("first_sample")) + std::stoll(m.at("spp"));
+        st.seed = previous_seed;
+        const uint64_t first = metadata_count(previous, resume_path, "first_sample");
+        const uint64_t done = metadata_count(previous, resume_path, "spp");
+        constexpr uint64_t kMaxSamples = uint64_t(std::numeric_limits<long long>::max());
+        if (first > kMaxSamples || done > kMaxSamples - first)
+            throw InputError(resume_path + ": sample counts in the metadata are out of range");
+        st.first_sample = (long long)(first + done);
     }
 
     const auto& cam = sf.scene->camera();
@@ -153,8 +188,7 @@ int render(const std::vector<std::string>& args) {
     meta["interrupted"] = g_interrupted ? "true" : "false";
     if (!resume_path.empty()) {
         merge_renders(previous, fb);
-        previous.metadata()["render_seconds"] =
-            fmt::format("{:.3f}", std::stod(previous.metadata().count("render_seconds") ? previous.metadata().at("render_seconds") : "0") + rs.seconds);
+        previous.metadata()["render_seconds"] = fmt::format("{:.3f}", previous_seconds + rs.seconds);
         fb = std::move(previous);
     }
     write_exr(out_path, fb);

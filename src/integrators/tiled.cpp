@@ -115,6 +115,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                     const ProgressFn& progress) {
     if (st.time_budget <= 0.0 && st.spp <= 0) throw ParameterError("spp must be positive");
     if (st.first_sample < 0) throw ParameterError("first sample index must be non-negative");
+    // A sample's number is 32 bits of its sampler key: past 2^32 a pixel's
+    // sample streams would repeat, and the image would stop converging.
+    if (st.first_sample + (st.time_budget > 0.0 ? 0 : st.spp) > (1LL << 32))
+        throw ParameterError("first sample index + spp must not exceed 2^32 samples per pixel");
     prepare(scene);
     const int W = scene.camera().width(), H = scene.camera().height();
     const std::vector<SlotSpec> specs = slots();
