@@ -179,3 +179,28 @@ TEST_CASE("cli: --resume names a malformed metadata entry before rendering", "[c
     CHECK_THAT(error_of({"render", scene, "--spp", "1", "--resume", out("meta-old.exr"), "-o", out("meta-out.exr")}),
                Contains("first_sample"));
 }
+
+TEST_CASE("cli: an unwritable output is refused before rendering, and a failed write is rescued", "[cli][errors]") {
+    const std::string ok = kScenes + "bad/ok.json";
+    CHECK_THAT(error_of({"render", ok, "-o", out("no-such-dir/x.exr")}), Contains("no-such-dir"));
+    CHECK_THAT(error_of({"render", ok, "-o", out_dir().string()}), Contains("directory"));
+    // A write that fails after rendering (here: its directory is gone) leaves the image in a rescue file.
+    REQUIRE(cli::run({"render", ok, "--spp", "2", "-o", out("rescued.exr")}) == 0);
+    const FrameBuffer fb = read_exr(out("rescued.exr"));
+    std::string msg;
+    try {
+        cli::write_exr_or_rescue(out("gone/x.exr"), fb);
+    } catch (const RuntimeFailure& e) {
+        msg = e.what();
+    }
+    REQUIRE_THAT(msg, Contains("gone/x.exr") && Contains("saved to"));
+    const std::string rescue = msg.substr(msg.find("saved to ") + 9, msg.find(" instead") - msg.find("saved to ") - 9);
+    const FrameBuffer back = read_exr(rescue);
+    CHECK(back.metadata().at("spp") == "2");
+    CHECK(back.get("color").values() == fb.get("color").values());
+    fs::remove(rescue);
+    // reconstruct and compare name the file that lacks a layer.
+    CHECK_THAT(error_of({"reconstruct", out("rescued.exr"), "-o", out("r.exr")}), Contains("rescued.exr") && Contains("primal"));
+    CHECK_THAT(error_of({"compare", out("rescued.exr"), out("rescued.exr"), "--layer", "dx"}),
+               Contains("rescued.exr") && Contains("'dx'"));
+}

@@ -54,7 +54,11 @@ int reconstruct(const std::vector<std::string>& args) {
         layout = "reference layout " + (prefix.empty() ? in : prefix) + "-*.exr";
     } else {
         fb = read_exr(in);
-        buffers = gradient_buffers(fb);
+        try {
+            buffers = gradient_buffers(fb);
+        } catch (const InputError& e) {
+            throw InputError(in + ": not a gradient-domain render: " + e.what());
+        }
         layout = "gdr layers of " + in;
     }
     const auto rec = reconstructor_registry().create(method, params);
@@ -87,6 +91,7 @@ int compare(const std::vector<std::string>& args) {
     if (ref_path.empty()) throw ParameterError("compare: expected IMAGE.exr REFERENCE.exr\n" + usage());
     const auto pick = [&](const std::string& path) {
         const FrameBuffer fb = read_exr(path);
+        if (!layer.empty() && !fb.has(layer)) throw InputError(path + ": no layer '" + layer + "'");
         if (!layer.empty()) return fb.get(layer);
         return read_exr_rgb(path);
     };

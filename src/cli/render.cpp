@@ -49,6 +49,19 @@ double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
     return x;
 }
 
+// Throws, naming the path, unless `path` can be created as a file: checked
+// before rendering, so that a typing error costs no render time.
+void check_output_path(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) throw InputError("cannot write '" + path + "': it is a directory");
+    fs::path dir = fs::path(path).parent_path();
+    if (dir.empty()) dir = ".";
+    if (!fs::is_directory(dir, ec)) throw InputError("cannot write '" + path + "': no directory '" + dir.string() + "'");
+    if (access(dir.c_str(), W_OK) != 0)
+        throw InputError("cannot write '" + path + "': directory '" + dir.string() + "' is not writable");
+}
+
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_sigint(int) { g_interrupted = true; }
 
@@ -87,6 +100,25 @@ private:
 
 }  // namespace
 
+std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {
+    try {
+        write_exr(path, fb);
+        return path;
+    } catch (const Error& e) {
+        const std::string rescue =
+            (std::filesystem::temp_directory_path() / fmt::format("gdr-rescue-{}.exr", getpid())).string();
+        bool saved = false;
+        try {
+            write_exr(rescue, fb);
+            saved = true;
+        } catch (const Error&) {
+        }
+        if (!saved) throw;
+        throw RuntimeFailure(std::string(e.what()) + "\nthe render was saved to " + rescue +
+                             " instead (gdr render --resume accepts it)");
+    }
+}
+
 int render(const std::vector<std::string>& args) {
     ArgReader a{args};
     std::string scene_path, out_path, integrator_name, resume_path;
@@ -114,6 +146,7 @@ int render(const std::vector<std::string>& args) {
     if (scene_path.empty()) throw ParameterError("render: no scene file given\n" + usage());
     if (out_path.empty()) throw ParameterError("render: no output given (-o OUT.exr)");
     if (spp > 0 && time_budget > 0.0) throw ParameterError("render: give either --spp or --time, not both");
+    check_output_path(out_path);
 
     // Resuming continues the previous render's sample sequence, so the merged
     // image equals one longer render.
@@ -191,7 +224,7 @@ int render(const std::vector<std::string>& args) {
         previous.metadata()["render_seconds"] = fmt::format("{:.3f}", previous_seconds + rs.seconds);
         fb = std::move(previous);
     }
-    write_exr(out_path, fb);
+    write_exr_or_rescue(out_path, fb);
     const std::string png = std::filesystem::path(out_path).replace_extension(".png").string();
     // A gradient-domain render is shown as its L1 reconstruction, anything else as its colour.
     const std::string preview = fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.has("color") ? "color" : fb.names().front();

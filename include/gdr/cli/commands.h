@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "gdr/core/image.h"
+
 namespace gdr::cli {
 
 /// Dispatches `args` (without the program name) to a subcommand.
@@ -13,6 +15,10 @@ int run(const std::vector<std::string>& args);
 
 /// gdr render SCENE.json [options] -o OUT.exr
 int render(const std::vector<std::string>& args);
+/// Writes `fb` to `path` and returns it; if that fails (disk full, directory
+/// gone), writes it to a rescue file in the temporary directory and throws a
+/// RuntimeFailure naming both, so that a finished render is never lost.
+std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb);
 /// gdr info FILE.exr
 int info(const std::vector<std::string>& args);
 
