@@ -5,9 +5,13 @@
 namespace gdr {
 
 Camera::Camera(const CameraDesc& d) : desc_(d) {
-    if (d.width <= 0 || d.height <= 0 || d.width > 65536 || d.height > 65536)
+    if (d.width <= 0 || d.height <= 0)
         throw ParameterError("camera: resolution must be positive, got " + std::to_string(d.width) + "x" +
                              std::to_string(d.height));
+    // Pixel coordinates travel as floats and 32-bit sampler keys; 65536 keeps them exact.
+    if (d.width > 65536 || d.height > 65536)
+        throw ParameterError("camera: resolution must be at most 65536 per side, got " + std::to_string(d.width) +
+                             "x" + std::to_string(d.height));
     if (!(d.fov_deg > 0.f && d.fov_deg < 180.f))
         throw ParameterError("camera: fov must be in (0, 180) degrees, got " + std::to_string(d.fov_deg));
     if (d.fov_axis != 'x' && d.fov_axis != 'y') throw ParameterError("camera: fov_axis must be 'x' or 'y'");

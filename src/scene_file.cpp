@@ -4,9 +4,11 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <set>
 
+#include <fmt/core.h>
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 #include <tiny_obj_loader.h>
@@ -123,15 +125,43 @@ MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Overr
     if (j.contains("kd")) m.kd = get_vec3(file, j["kd"], where + ".kd");
     if (j.contains("ks")) m.ks = get_vec3(file, j["ks"], where + ".ks");
     if (j.contains("ke")) m.ke = get_vec3(file, j["ke"], where + ".ke");
-    if (j.contains("alpha")) m.pr = get_number(file, j["alpha"], where + ".alpha");
-    if (j.contains("ns")) m.ns = get_number(file, j["ns"], where + ".ns"), m.pr = j.contains("alpha") ? m.pr : -1.f;
-    if (j.contains("eta")) m.ni = get_number(file, j["eta"], where + ".eta");
+    // A negative alpha would be read as "no alpha given" (the MTL's Pr sentinel).
+    if (j.contains("alpha")) {
+        m.pr = get_number(file, j["alpha"], where + ".alpha");
+        if (!(m.pr >= 0.f)) fail(file, "'" + where + ".alpha' must be >= 0 (0: a smooth mirror)");
+    }
+    if (j.contains("ns")) {
+        m.ns = get_number(file, j["ns"], where + ".ns"), m.pr = j.contains("alpha") ? m.pr : -1.f;
+        if (!(m.ns >= 0.f)) fail(file, "'" + where + ".ns' must be >= 0");
+    }
+    if (j.contains("eta")) {
+        m.ni = get_number(file, j["eta"], where + ".eta");
+        if (!(m.ni > 0.f)) fail(file, "'" + where + ".eta' must be positive");
+    }
     if (j.contains("metal")) m.metal = j["metal"].get<bool>();
     if (j.contains("map_kd")) {
         const std::string t = j["map_kd"].get<std::string>();
         m.map_kd = t.empty() ? "" : (fs::path(file).parent_path() / t).string();
     }
     return m;
+}
+
+// "(r, g, b)" of a colour, for messages.
+std::string colour_text(const Color& c) { return fmt::format("({}, {}, {})", c.r, c.g, c.b); }
+
+// Rejects colours no physical material has: negative or non-finite
+// components, and reflectances above 1, which create energy with every
+// bounce (the estimators' variance then grows without bound with depth).
+void check_material_colours(const MaterialDesc& d) {
+    const auto bad = [](const Color& c, float hi) {
+        for (int i = 0; i < 3; ++i)
+            if (!(c[i] >= 0.f && c[i] <= hi)) return true;
+        return false;
+    };
+    if (bad(d.kd, 1.f)) throw ParameterError("Kd must lie in [0, 1] per channel, got " + colour_text(d.kd));
+    if (bad(d.ks, 1.f)) throw ParameterError("Ks must lie in [0, 1] per channel, got " + colour_text(d.ks));
+    if (bad(d.ke, std::numeric_limits<float>::max()))
+        throw ParameterError("Ke must be finite and >= 0 per channel, got " + colour_text(d.ke));
 }
 
 }  // namespace
@@ -235,21 +265,30 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
         d.illum = mt.illum;
         if (!mt.diffuse_texname.empty()) d.map_kd = (dir / mt.diffuse_texname).string();
         std::string type = "auto";
+        bool overridden = false;
         if (overrides) {
             auto it = overrides->find(mt.name);
             if (it != overrides->end()) {
                 d = apply_override(scene_file, d, it->second);
                 type = it->second.type;
                 used_overrides->insert(mt.name);
+                overridden = true;
             }
         }
         Material m;
         m.name = d.name;
         m.emission = d.ke;
         try {
+            check_material_colours(d);
             m.bsdf = type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, type);
         } catch (const Error& e) {
-            throw InputError(path + ": material '" + d.name + "': " + e.what());
+            // An overridden material's values come (at least partly) from the scene file.
+            const std::string where = overridden ? scene_file + ": materials." + d.name + " (a material of " + path + ")"
+                                                 : path + ": material '" + d.name + "'";
+            std::string what = e.what();
+            const std::string prefix = "material '" + d.name + "': ";
+            if (what.rfind(prefix, 0) == 0) what.erase(0, prefix.size());
+            throw InputError(where + ": " + what);
         }
         materials.push_back(std::move(m));
     }

@@ -3,6 +3,10 @@
 // gives hits with the documented conventions (winding, one-sided emitters).
 #include <catch2/catch.hpp>
 
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string>
 
@@ -319,4 +323,35 @@ TEST_CASE("scene: visible8 agrees with visible on batches of 0 to 8 segments", "
     CHECK(blocked < total * 9 / 10);
     CHECK(disagree * 1000 <= total);
     CHECK(counter.n == expected_rays);  // the observer sees each traced segment once
+}
+
+TEST_CASE("scene file: unphysical material values are errors naming where they came from", "[scene][errors]") {
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("gdr-test-materials-" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    const auto write = [&](const std::string& name, const std::string& text) { std::ofstream(dir / name) << text; };
+    write("quad.obj", "mtllib quad.mtl\nv -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nusemtl wall\nf 1 2 3\n");
+    write("quad.mtl", "newmtl wall\nKd 0.5 0.5 0.5\n");
+    write("bright.obj", "mtllib bright.mtl\nv -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nusemtl wall\nf 1 2 3\n");
+    write("bright.mtl", "newmtl wall\nKd 1.5 0.5 0.5\n");
+    const auto scene_with = [&](const std::string& name, const std::string& materials, const std::string& obj = "quad.obj") {
+        write(name, R"({"camera": {"width": 4, "height": 4}, "meshes": [")" + obj + R"("], "materials": )" + materials + "}");
+        return error_of([&] { load_scene_file((dir / name).string()); });
+    };
+    // The override's own keys, named in full.
+    CHECK_THAT(scene_with("alpha.json", R"({"wall": {"type": "roughconductor", "alpha": -1}})"),
+               Contains("alpha.json") && Contains("materials.wall.alpha"));
+    CHECK_THAT(scene_with("eta.json", R"({"wall": {"type": "dielectric", "eta": 0}})"),
+               Contains("eta.json") && Contains("materials.wall.eta"));
+    CHECK_THAT(scene_with("ns.json", R"({"wall": {"ns": -3}})"), Contains("materials.wall.ns"));
+    // Colours: above 1 a reflectance creates energy; negative emission is no light.
+    CHECK_THAT(scene_with("kd.json", R"({"wall": {"type": "diffuse", "kd": [2, 2, 2]}})"),
+               Contains("kd.json") && Contains("materials.wall") && Contains("Kd"));
+    CHECK_THAT(scene_with("ks.json", R"({"wall": {"type": "mirror", "ks": [1, -0.5, 1]}})"), Contains("Ks"));
+    CHECK_THAT(scene_with("ke.json", R"({"wall": {"ke": [-1, 0, 0]}})"), Contains("ke.json") && Contains("Ke"));
+    // The same rule for an MTL file's own values, named by the OBJ and the material.
+    CHECK_THAT(scene_with("mtl.json", "{}", "bright.obj"), Contains("bright.obj") && Contains("'wall'") && Contains("Kd"));
+    // Values at the limits load.
+    CHECK(scene_with("fine.json", R"({"wall": {"type": "roughconductor", "ks": [1, 1, 1], "alpha": 0}})").empty());
+    fs::remove_all(dir);
 }
