@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -203,4 +204,16 @@ TEST_CASE("cli: an unwritable output is refused before rendering, and a failed w
     CHECK_THAT(error_of({"reconstruct", out("rescued.exr"), "-o", out("r.exr")}), Contains("rescued.exr") && Contains("primal"));
     CHECK_THAT(error_of({"compare", out("rescued.exr"), out("rescued.exr"), "--layer", "dx"}),
                Contains("rescued.exr") && Contains("'dx'"));
+}
+
+TEST_CASE("cli: reconstruct names the file and the pixel of a NaN in a gradient", "[cli][errors]") {
+    REQUIRE(cli::run({"render", kScenes + "cornell-small.json", "--integrator", "gpt", "--spp", "1", "--set",
+                      "reconstruct=none", "-o", out("grad.exr")}) == 0);
+    FrameBuffer fb = read_exr(out("grad.exr"));
+    fb.get("dx").at(3, 2, 1) = std::numeric_limits<float>::quiet_NaN();
+    write_exr(out("grad-nan.exr"), fb);
+    const std::string msg = error_of({"reconstruct", out("grad-nan.exr"), "-o", out("rec.exr")});
+    CHECK_THAT(msg, Contains("grad-nan.exr") && Contains("dx") && Contains("(3, 2)"));
+    CHECK_FALSE(fs::exists(out("rec.exr")));
+    CHECK(cli::run({"reconstruct", out("grad.exr"), "-o", out("rec.exr")}) == 0);
 }

@@ -62,7 +62,13 @@ int reconstruct(const std::vector<std::string>& args) {
         layout = "gdr layers of " + in;
     }
     const auto rec = reconstructor_registry().create(method, params);
-    const Image img = rec->reconstruct(buffers);
+    Image img;
+    try {
+        img = rec->reconstruct(buffers);
+    } catch (const Error& e) {
+        // A non-finite or mis-shaped buffer: say which input it is in.
+        throw InputError(layout + ": " + e.what());
+    }
 
     FrameBuffer result(img.width(), img.height());
     result.set("color", img);
