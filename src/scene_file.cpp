@@ -168,7 +168,8 @@ void check_material_colours(const MaterialDesc& d) {
 
 namespace {
 // tinyobjloader reads a coordinate it cannot parse ("nan", "1,5", "x") as 0,
-// which would silently move a vertex; so the vertex lines are checked first.
+// which would silently move a vertex or tilt a normal; so the vertex,
+// normal and texture-coordinate lines are checked first.
 void check_vertex_lines(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) return;  // the reader reports unreadable files
@@ -176,13 +177,22 @@ void check_vertex_lines(const std::string& path) {
     size_t line_no = 0;
     while (std::getline(in, line)) {
         ++line_no;
-        if (line.size() < 2 || line[0] != 'v' || (line[1] != ' ' && line[1] != '\t')) continue;
-        const char* c = line.data() + 1;
+        // v x y z [colour], vn x y z, vt u [v [w]]: how many numbers are checked, and how many are required.
+        int start, count, required;
+        const char* kind;
+        const auto blank = [&](size_t i) { return i < line.size() && (line[i] == ' ' || line[i] == '\t'); };
+        if (line.size() >= 2 && line[0] == 'v' && blank(1)) start = 1, count = 3, required = 3, kind = "vertex";
+        else if (line.size() >= 3 && line[0] == 'v' && line[1] == 'n' && blank(2)) start = 2, count = 3, required = 3, kind = "normal";
+        else if (line.size() >= 3 && line[0] == 'v' && line[1] == 't' && blank(2)) start = 2, count = 3, required = 1, kind = "texture coordinate";
+        else continue;
+        const char* c = line.data() + start;
         const char* end = line.data() + line.size();
-        for (int k = 0; k < 3; ++k) {
+        for (int k = 0; k < count; ++k) {
             while (c < end && (*c == ' ' || *c == '\t')) ++c;
-            if (c == end || *c == '\r') {
-                throw InputError(path + ": line " + std::to_string(line_no) + ": a vertex needs three coordinates");
+            if (c == end || *c == '\r' || *c == '#') {
+                if (k >= required) break;
+                throw InputError(path + ": line " + std::to_string(line_no) + ": a " + kind + " needs " +
+                                 std::to_string(required) + (required == 1 ? " coordinate" : " coordinates"));
             }
             const char* tok = c;
             while (c < end && *c != ' ' && *c != '\t' && *c != '\r') ++c;
@@ -190,10 +200,10 @@ void check_vertex_lines(const std::string& path) {
             float v = 0.f;
             const char* first = t.c_str() + (t[0] == '+' ? 1 : 0);
             const auto res = std::from_chars(first, t.c_str() + t.size(), v);
-            // Out-of-range values (1e39) parse to inf below; the loader reports those with the vertex number.
+            // Out-of-range values (1e39) parse to inf below; the loader reports those with the element's number.
             if (res.ec == std::errc::result_out_of_range) continue;
             if (res.ec != std::errc() || res.ptr != t.c_str() + t.size() || !std::isfinite(v))
-                throw InputError(path + ": line " + std::to_string(line_no) + ": vertex coordinate '" + t +
+                throw InputError(path + ": line " + std::to_string(line_no) + ": " + kind + " coordinate '" + t +
                                  "' is not a finite number");
         }
     }
@@ -314,15 +324,27 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
                 if (!is_finite(v))
                     throw InputError(path + ": vertex " + std::to_string(vi + 1) + " is not a finite number");
                 p[k] = Vec3(xf * Vec4(v, 1.f));
-                if (c[k].normal_index >= 0 && size_t(3 * c[k].normal_index + 2) < attrib.normals.size())
-                    n[k] = nxf * Vec3(attrib.normals[3 * c[k].normal_index], attrib.normals[3 * c[k].normal_index + 1],
-                                      attrib.normals[3 * c[k].normal_index + 2]);
-                else
+                // An index past the end is a malformed face (a typo in f a/b/c), not an absent attribute.
+                const int ni = c[k].normal_index, ti = c[k].texcoord_index;
+                if (ni >= 0 && size_t(3 * ni + 2) >= attrib.normals.size())
+                    throw InputError(path + ": face " + std::to_string(f) + " of '" + sh.name + "' references a missing normal");
+                if (ti >= 0 && size_t(2 * ti + 1) >= attrib.texcoords.size())
+                    throw InputError(path + ": face " + std::to_string(f) + " of '" + sh.name +
+                                     "' references a missing texture coordinate");
+                if (ni >= 0) {
+                    const Vec3 vn(attrib.normals[3 * ni], attrib.normals[3 * ni + 1], attrib.normals[3 * ni + 2]);
+                    if (!is_finite(vn)) throw InputError(path + ": normal " + std::to_string(ni + 1) + " is not a finite number");
+                    n[k] = nxf * vn;
+                } else {
                     has_n = false;
-                if (c[k].texcoord_index >= 0 && size_t(2 * c[k].texcoord_index + 1) < attrib.texcoords.size())
-                    uv[k] = Vec2(attrib.texcoords[2 * c[k].texcoord_index], attrib.texcoords[2 * c[k].texcoord_index + 1]);
-                else
+                }
+                if (ti >= 0) {
+                    uv[k] = Vec2(attrib.texcoords[2 * ti], attrib.texcoords[2 * ti + 1]);
+                    if (!std::isfinite(uv[k].x) || !std::isfinite(uv[k].y))
+                        throw InputError(path + ": texture coordinate " + std::to_string(ti + 1) + " is not a finite number");
+                } else {
                     uv[k] = Vec2(0.f);
+                }
             }
             if (flip) std::swap(p[1], p[2]), std::swap(n[1], n[2]), std::swap(uv[1], uv[2]);
             if (!has_n) {

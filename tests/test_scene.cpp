@@ -355,3 +355,28 @@ TEST_CASE("scene file: unphysical material values are errors naming where they c
     CHECK(scene_with("fine.json", R"({"wall": {"type": "roughconductor", "ks": [1, 1, 1], "alpha": 0}})").empty());
     fs::remove_all(dir);
 }
+
+TEST_CASE("OBJ: bad normals and texture coordinates are errors naming the file, not silent zeros", "[scene][errors]") {
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("gdr-test-attributes-" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    const auto load_obj_text = [&](const std::string& name, const std::string& body) {
+        std::ofstream(dir / (name + ".obj")) << "v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\n" << body;
+        std::ofstream(dir / (name + ".json")) << R"({"camera": {"width": 4, "height": 4}, "meshes": [")" << name << R"(.obj"]})";
+        return error_of([&] { load_scene_file((dir / (name + ".json")).string()); });
+    };
+    // tinyobjloader would read these as 0: a tilted normal, a wrong texel.
+    CHECK_THAT(load_obj_text("nan-normal", "vn nan 0 1\nf 1//1 2//1 3//1\n"),
+               Contains("nan-normal.obj") && Contains("line 4") && Contains("normal"));
+    CHECK_THAT(load_obj_text("bad-uv", "vt 0.5 x\nf 1/1 2/1 3/1\n"),
+               Contains("bad-uv.obj") && Contains("line 4") && Contains("texture coordinate"));
+    CHECK_THAT(load_obj_text("short-normal", "vn 0 1\nf 1//1 2//1 3//1\n"), Contains("short-normal.obj") && Contains("line 4"));
+    // Indices past the end are malformed faces, not absent attributes.
+    CHECK_THAT(load_obj_text("missing-normal", "vn 0 0 1\nf 1//1 2//2 3//1\n"),
+               Contains("missing-normal.obj") && Contains("missing normal"));
+    CHECK_THAT(load_obj_text("missing-uv", "vt 0 0\nf 1/1 2/3 3/1\n"),
+               Contains("missing-uv.obj") && Contains("missing texture coordinate"));
+    // Well-formed attributes, including a one-number vt, load.
+    CHECK(load_obj_text("fine", "vt 0.25\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n").empty());
+    fs::remove_all(dir);
+}
