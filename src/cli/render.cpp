@@ -221,6 +221,9 @@ int render(const std::vector<std::string>& args) {
     meta["interrupted"] = g_interrupted ? "true" : "false";
     if (!resume_path.empty()) {
         merge_renders(previous, fb);
+        integrator->update_merged(previous);
+        // The merged image is as complete as its last part.
+        previous.metadata()["interrupted"] = meta["interrupted"];
         previous.metadata()["render_seconds"] = fmt::format("{:.3f}", previous_seconds + rs.seconds);
         fb = std::move(previous);
     }

@@ -369,19 +369,27 @@ protected:
         out.set("primal_variance", primal_both_ ? std::move(primal_var) : std::move(im[5]));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
-        // The reconstructions, each with the directly visible emitters added back.
-        GradientBuffers gb;
-        gb.primal = &out.get("primal"), gb.dx = &out.get("dx"), gb.dy = &out.get("dy"), gb.direct = &out.get("direct");
-        Params rp("gpt");
-        rp.set("alpha", alpha_);
-        if (solve_l1_) out.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
-        if (solve_l2_) out.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
+        reconstruct_layers(out);
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
     }
 
+public:
+    void update_merged(FrameBuffer& merged) const override { reconstruct_layers(merged); }
+
 private:
+    // The reconstructions of the buffer's primal and gradients, each with the
+    // directly visible emitters added back.
+    void reconstruct_layers(FrameBuffer& fb) const {
+        GradientBuffers gb;
+        gb.primal = &fb.get("primal"), gb.dx = &fb.get("dx"), gb.dy = &fb.get("dy"), gb.direct = &fb.get("direct");
+        Params rp("gpt");
+        rp.set("alpha", alpha_);
+        if (solve_l1_) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
+        if (solve_l2_) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
+    }
+
     // Most samples whose stages run in turn, and the default: 4, 8 and 16
     // ran alike on the Cornell box, about 7% less CPU time per sample than 1.
     static constexpr int kMaxBatch = 8;

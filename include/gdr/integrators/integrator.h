@@ -59,6 +59,10 @@ public:
                                const ProgressFn& progress = {}) = 0;
     /// The integrator's parameters as "key=value" lines (written to file headers).
     virtual std::string describe() const = 0;
+    /// Recomputes, in `merged`, the layers that are not means of samples (an L1
+    /// reconstruction is not the average of two reconstructions), after
+    /// merge_renders() pooled two renders of this integrator into it.
+    virtual void update_merged(FrameBuffer& merged) const { (void)merged; }
 };
 
 /// The process-wide integrator registry, with the built-ins registered on first use.
@@ -70,6 +74,8 @@ void register_builtin_integrators(Registry<Integrator>& r);
 /// independent samples: mean layers are averaged weighted by sample counts,
 /// layers whose name ends in "variance" are pooled (per-sample variances).
 /// Both need "spp" metadata; throws ParameterError if they do not match.
+/// Layers that are not means (reconstructions) are then stale: call the
+/// integrator's update_merged() on the result.
 void merge_renders(FrameBuffer& into, const FrameBuffer& other);
 
 }  // namespace gdr
