@@ -428,6 +428,32 @@ TEST_CASE("tiled integrators: time budgets and cancellation end on whole passes"
     CHECK_THROWS_AS(pt->render(*sf.scene, bad, fb, {}), ParameterError);
 }
 
+TEST_CASE("tiled integrators: a second render of the same object while one runs is refused", "[pt][tiled][errors]") {
+    const SceneFile sf = load_scene_file(kScenes + "emitter-wall/scene.json");
+    auto pt = integrator_registry().create("pt", Params());
+    FrameBuffer fb, inner_fb;
+    RenderSettings st;
+    st.spp = 2;
+    std::atomic<int> refused{0}, other{0};
+    // The progress callback runs inside render(): a render started from there
+    // overlaps the first, as one from another thread would.
+    const RenderStats rs = pt->render(*sf.scene, st, fb, [&](const Progress&) {
+        try {
+            pt->render(*sf.scene, st, inner_fb, {});
+        } catch (const RuntimeFailure&) {
+            ++refused;
+        } catch (...) {
+            ++other;
+        }
+    });
+    CHECK(refused > 0);
+    CHECK(other == 0);
+    CHECK(rs.spp == 2);
+    CHECK(fb.get("color").rgb(0, 0) == Color(3.f, 2.f, 0.5f));
+    // Once it has returned, the object renders again.
+    CHECK_NOTHROW(pt->render(*sf.scene, st, inner_fb, {}));
+}
+
 TEST_CASE("pt: parameters are validated", "[pt][errors]") {
     CHECK_THROWS_AS(integrator_registry().create("pt", [] { Params p; p.set("max_depth", 0LL); return p; }()), ParameterError);
     CHECK_THROWS_AS(integrator_registry().create("pt", [] { Params p; p.set("rr_depth", 0LL); return p; }()), ParameterError);

@@ -113,6 +113,12 @@ std::vector<Image> Accumulated::images(const std::vector<Want>& wanted) const {
 
 RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st, FrameBuffer& out,
                                     const ProgressFn& progress) {
+    if (rendering_.exchange(true))
+        throw RuntimeFailure("this integrator is already rendering: concurrent renders need one integrator each");
+    struct Release {
+        std::atomic<bool>& flag;
+        ~Release() { flag = false; }
+    } release{rendering_};
     if (st.time_budget <= 0.0 && st.spp <= 0) throw ParameterError("spp must be positive");
     if (st.first_sample < 0) throw ParameterError("first sample index must be non-negative");
     // A sample's number is 32 bits of its sampler key: past 2^32 a pixel's

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -126,6 +127,9 @@ protected:
 private:
     struct Buffers;
     std::unique_ptr<Buffers> buffers_;
+    // Set while render() runs: a second, concurrent render() of the same
+    // object would share the accumulators, so it is refused instead.
+    std::atomic<bool> rendering_{false};
 };
 
 }  // namespace gdr
