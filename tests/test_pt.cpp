@@ -9,10 +9,14 @@
 // each case shows the test has power (a wrong answer is rejected).
 #include <catch2/catch.hpp>
 
+#include <unistd.h>
+
 #include <atomic>
 #include <cmath>
 #include <mutex>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <functional>
 #include <string>
 
@@ -24,6 +28,8 @@
 #include "gdr/io/scene_file.h"
 
 using namespace gdr;
+using Catch::Matchers::Contains;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -452,6 +458,32 @@ TEST_CASE("tiled integrators: a second render of the same object while one runs 
     CHECK(fb.get("color").rgb(0, 0) == Color(3.f, 2.f, 0.5f));
     // Once it has returned, the object renders again.
     CHECK_NOTHROW(pt->render(*sf.scene, st, inner_fb, {}));
+}
+
+TEST_CASE("tiled integrators: a render larger than the machine's memory is refused with the figure", "[pt][tiled][errors]") {
+    const double have = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    // 2^32 pixels need ~450 GB of accumulators for pt; a machine with more would start rendering.
+    if (have > 400e9) {
+        WARN("not checked: this machine has more memory than the largest camera needs");
+        return;
+    }
+    const fs::path dir = fs::temp_directory_path() / ("gdr-test-memory-" + std::to_string(getpid()));
+    fs::create_directories(dir);
+    std::ofstream(dir / "huge.json") << R"({"camera": {"width": 65536, "height": 65536}, "meshes": [")"
+                                     << kScenes << R"(bad/triangle.obj"]})";
+    const SceneFile sf = load_scene_file((dir / "huge.json").string());
+    auto pt = integrator_registry().create("pt", Params());
+    FrameBuffer fb;
+    RenderSettings st;
+    st.spp = 1;
+    std::string msg;
+    try {
+        pt->render(*sf.scene, st, fb, {});
+    } catch (const RuntimeFailure& e) {
+        msg = e.what();
+    }
+    CHECK_THAT(msg, Contains("65536x65536") && Contains("GB"));
+    fs::remove_all(dir);
 }
 
 TEST_CASE("pt: parameters are validated", "[pt][errors]") {

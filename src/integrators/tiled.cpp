@@ -9,9 +9,11 @@
 #include <new>
 
 #include <sys/mman.h>
+#include <unistd.h>
 #include <cmath>
 #include <mutex>
 
+#include <fmt/core.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -156,8 +158,28 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // first pass: a serial memset of a large image would cost as much as a
     // few samples per pixel, and first touch on the worker places the pages.
     const size_t npix = size_t(W) * H;
-    HugeDoubles& sum = Buffers::fit(buffers_->sum, npix * stride);
-    HugeDoubles& sum2 = Buffers::fit(buffers_->sum2, npix * var_stride);
+    // Accumulators plus the float layers finalize() writes (about one per
+    // accumulated channel): refused up front when they exceed the machine's
+    // memory, where the kernel would otherwise grant them and kill the
+    // process part-way through the render.
+    const double need = double(npix) * (double(stride + var_stride) * sizeof(double) + double(stride) * sizeof(float));
+    const double have = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
+    const auto too_big = [&] {
+        return RuntimeFailure(fmt::format("a {}x{} render with this integrator needs about {:.1f} GB of memory, "
+                                          "the machine has {:.1f} GB: render fewer pixels",
+                                          W, H, need * 1e-9, have * 1e-9));
+    };
+    if (have > 0.0 && need > have) throw too_big();
+    HugeDoubles* sum_p = nullptr;
+    HugeDoubles* sum2_p = nullptr;
+    try {
+        sum_p = &Buffers::fit(buffers_->sum, npix * stride);
+        sum2_p = &Buffers::fit(buffers_->sum2, npix * var_stride);
+    } catch (const std::bad_alloc&) {
+        throw too_big();
+    }
+    HugeDoubles& sum = *sum_p;
+    HugeDoubles& sum2 = *sum2_p;
 
     struct Tile {
         int x0, y0, x1, y1;
