@@ -30,6 +30,7 @@
 #include "gdr/io/exr.h"
 #include "gdr/metrics.h"
 #include "gdr/reconstruct/reconstructor.h"
+#include "run_stats.h"
 
 using namespace gdr;
 using namespace gdr::eval;
@@ -86,16 +87,16 @@ Options parse(int argc, char** argv) {
         else if (a == "--references-only") o.references_only = true;
         else if (a == "--refresh-references") o.refresh = true;
         else if (a == "--scenes") o.scenes = split(next());
-        else if (a == "--width") o.width = std::stoi(next()), width_set = true;
+        else if (a == "--width") o.width = int(bench::int_option(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
             o.budgets.clear();
-            for (const std::string& b : split(next())) o.budgets.push_back(std::stod(b));
+            for (const std::string& b : split(next())) o.budgets.push_back(bench::positive_option(a, b));
             budgets_set = true;
-        } else if (a == "--ref-spp") o.ref_spp = std::stoll(next()), spp_set = true;
+        } else if (a == "--ref-spp") o.ref_spp = bench::int_option(a, next(), 1, 1LL << 32), spp_set = true;
         else if (a == "--out") o.out = next();
         else if (a == "--cache") o.cache = next();
         else if (a == "--docs") o.docs = next();
-        else if (a == "--threads") o.threads = std::stoi(next());
+        else if (a == "--threads") o.threads = int(bench::int_option(a, next(), 0, 1 << 16));
         else if (a == "-h" || a == "--help") {
             std::printf("usage: bench_equal_time [--quick] [--references-only] [--refresh-references] [--scenes a,b]\n"
                         "         [--width W] [--budgets s1,s2,..] [--ref-spp N] [--out DIR] [--cache DIR] [--docs DIR]\n"

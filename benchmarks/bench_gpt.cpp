@@ -15,10 +15,12 @@
 // Usage: bench_gpt [SCENE.json] [repeats]
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <mutex>
 #include <string>
 #include <vector>
 
+#include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
 #include "run_stats.h"
@@ -47,9 +49,25 @@ double grey(const Image& img, int x, int y) {
 
 }  // namespace
 
+int run(const std::string& path, int repeats);
+
 int main(int argc, char** argv) {
-    const std::string path = argc > 1 ? argv[1] : GDR_SOURCE_DIR "/scenes/cornell-box/scene.json";
-    const int repeats = argc > 2 ? std::atoi(argv[2]) : 3;
+    try {
+        if (argc > 3 || (argc > 1 && (std::string(argv[1]) == "-h" || std::string(argv[1]) == "--help"))) {
+            std::printf("usage: bench_gpt [SCENE.json] [repeats]\n");
+            return argc > 3 ? 1 : 0;
+        }
+        const std::string path = argc > 1 ? argv[1] : GDR_SOURCE_DIR "/scenes/cornell-box/scene.json";
+        int repeats = 3;
+        if (argc > 2) repeats = int(bench::int_option("repeats", argv[2], 1, 10000));
+        return run(path, repeats);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "bench_gpt: error: %s\n", e.what());
+        return 1;
+    }
+}
+
+int run(const std::string& path, int repeats) {
     const SceneFile sf = load_scene_file(path);
     const Scene& scene = *sf.scene;
     auto pt = integrator_registry().create("pt", Params());

@@ -190,9 +190,9 @@ int main(int argc, char** argv) {
                 if (i + 1 >= argc) throw gdr::ParameterError("option " + a + " needs a value");
                 return argv[++i];
             };
-            if (a == "--spp") spp = std::stoll(value());
-            else if (a == "--repeats") repeats = std::stoi(value());
-            else if (a == "--threads") threads = std::stoi(value());
+            if (a == "--spp") spp = gdr::bench::int_option(a, value(), 1, 1LL << 32);
+            else if (a == "--repeats") repeats = int(gdr::bench::int_option(a, value(), 1, 10000));
+            else if (a == "--threads") threads = int(gdr::bench::int_option(a, value(), 0, 1 << 16));
             else if (a == "-h" || a == "--help") {
                 fmt::print("usage: bench_pt [--spp N] [--repeats R] [--threads T] [SCENE.json ...]\n");
                 return 0;

@@ -28,6 +28,7 @@
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/poisson.h"
 #include "gdr/reconstruct/reconstructor.h"
+#include "run_stats.h"
 
 using namespace gdr;
 
@@ -109,7 +110,14 @@ int main(int argc, char** argv) {
     int reps = 5;
     bool with_reference = false;
     for (int i = 1; i < argc; ++i) {
-        if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) reps = std::max(1, std::atoi(argv[++i]));
+        if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) {
+            try {
+                reps = int(gdr::bench::int_option("--reps", argv[++i], 1, 10000));
+            } catch (const std::exception& e) {
+                std::fprintf(stderr, "bench_reconstruct: error: %s\n", e.what());
+                return 2;
+            }
+        }
         else if (!std::strcmp(argv[i], "--with-reference")) with_reference = true;
         else {
             std::fprintf(stderr, "usage: %s [--reps N] [--with-reference]\n", argv[0]);
