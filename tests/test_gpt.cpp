@@ -407,6 +407,45 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
     }
 }
 
+TEST_CASE("camera packets of several samples give what one packet per sample gives", "[gpt][shift]") {
+    // Packets grouped by lane across samples (trace_camera_packets) hold
+    // other rays than one sample's own packet; each lane's hit must not
+    // depend on its neighbours.
+    const auto scene = small_box("Original", 20);
+    const Vec2 steps[4] = {{1.f, 0.f}, {-1.f, 0.f}, {0.f, 1.f}, {0.f, -1.f}};
+    constexpr int n = 8;
+    static CameraPath base[n], base1[n];
+    static OffsetPath out[n][4], out1[n][4];
+    static CameraPacket packet[n], packet1[n];
+    int hits = 0;
+    for (int first = 0; first < 400; first += n) {
+        Vec2 film[n];
+        bool active[n][4];
+        for (int j = 0; j < n; ++j) {
+            const int px = (first + j) % 20, py = (first + j) / 20;
+            Sampler s(SampleKey{5, uint32_t(px), uint32_t(py), uint32_t(j)});
+            film[j] = Vec2(float(px), float(py)) + s.next2d();
+            for (int d = 0; d < 4; ++d) active[j][d] = (j + d) % 3 != 0;  // some lanes idle
+        }
+        trace_camera_packets(*scene, n, film, base, steps, active, out, packet);
+        for (int j = 0; j < n; ++j) trace_camera_packet(*scene, film[j], base1[j], steps, active[j], out1[j], packet1[j]);
+        for (int j = 0; j < n; ++j)
+            for (int l = 0; l < 5; ++l) {
+                INFO("sample " << first + j << " lane " << l);
+                REQUIRE(packet[j].traced[l] == packet1[j].traced[l]);
+                REQUIRE(packet[j].hit[l] == packet1[j].hit[l]);
+                if (!packet[j].hit[l]) continue;
+                ++hits;
+                const SurfaceInteraction& a = l == 0 ? base[j].v[0].si : out[j][l - 1].v[0].y.si;
+                const SurfaceInteraction& b = l == 0 ? base1[j].v[0].si : out1[j][l - 1].v[0].y.si;
+                REQUIRE(a.prim == b.prim);
+                REQUIRE(std::memcmp(&a.p, &b.p, sizeof(Vec3)) == 0);
+                REQUIRE(a.t == b.t);
+            }
+    }
+    CHECK(hits > 1000);
+}
+
 TEST_CASE("an offset traces the light segment of a shared vertex the base left untraced", "[gpt][shift]") {
     // The base traces its light segment only where the sample contributes to
     // it. An offset that reconnects onto the same vertex with a BSDF value of

@@ -296,19 +296,20 @@ protected:
         const int W = scene.camera().width(), H = scene.camera().height();
         Vec2 step[kDirs];
         for (int d = 0; d < kDirs; ++d) step[d] = Vec2(float(kDx[d]), float(kDy[d]));
+        Vec2 film[kMaxBatch];
         for (int j = 0; j < n; ++j) {
             Sampler& sampler = jobs[j].sampler;
             const int px = jobs[j].x, py = jobs[j].y;
             sampler.set_dimension(dims::kFilm);
-            const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
+            film[j] = Vec2(float(px), float(py)) + sampler.next2d();
             bool* inside = scratch.inside[j];
             for (int d = 0; d < kDirs; ++d) {
                 const int nx = px + kDx[d], ny = py + kDy[d];
                 inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
             }
-            // The base's camera ray and its offsets' are traced as one packet.
-            trace_camera_packet(scene, film, scratch.path[j], step, inside, scratch.offsets[j], scratch.packet[j]);
         }
+        // The jobs' camera rays and their offsets' as full packets.
+        trace_camera_packets(scene, n, film, scratch.path, step, scratch.inside, scratch.offsets, scratch.packet);
         for (int j = 0; j < n; ++j)
             continue_camera_path(scene, jobs[j].sampler, trace_, scratch.path[j], scratch.packet[j].rays[0],
                                  scratch.packet[j].hit[0]);

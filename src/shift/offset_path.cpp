@@ -250,6 +250,48 @@ void trace_camera_packet(const Scene& scene, const Vec2& film, CameraPath& base,
     scene.intersect8(packet.rays, packet.traced, si, packet.hit);
 }
 
+void trace_camera_packets(const Scene& scene, int n, const Vec2* film, CameraPath* base, const Vec2 pixel_offsets[4],
+                          const bool (*active)[4], OffsetPath (*out)[4], CameraPacket* packet) {
+    // Lane l of every sample's packet, then lane l + 1: the samples of a batch
+    // are mostly of one pixel, so each group (all bases, all +x offsets, ...)
+    // is as coherent as camera rays get.
+    struct Lane {
+        CameraPacket* packet;
+        int lane;
+        SurfaceInteraction* si;
+    };
+    Lane lanes[5 * kMaxCameraBatch];
+    int m = 0;
+    SurfaceInteraction* first[kMaxCameraBatch][5];
+    for (int j = 0; j < n; ++j) {
+        CameraPacket& p = packet[j];
+        for (int i = 0; i < 8; ++i) p.traced[i] = false, p.hit[i] = false;
+        first[j][0] = begin_camera_path(scene, film[j], base[j], p.rays[0]);
+        p.traced[0] = true;
+        for (int i = 0; i < 4; ++i) {
+            reset(out[j][i]);
+            p.traced[1 + i] = active[j][i];
+            first[j][1 + i] = active[j][i] ? start_offset(scene, film[j], pixel_offsets[i], out[j][i], p.rays[1 + i]) : nullptr;
+        }
+    }
+    for (int l = 0; l < 5; ++l)
+        for (int j = 0; j < n; ++j)
+            if (packet[j].traced[l]) lanes[m++] = {&packet[j], l, first[j][l]};
+    for (int b = 0; b < m; b += 8) {
+        Ray rays[8];
+        bool act[8], hit[8];
+        SurfaceInteraction* si[8];
+        for (int i = 0; i < 8; ++i) {
+            act[i] = b + i < m;
+            const Lane& L = lanes[act[i] ? b + i : b];  // idle lanes repeat a ray; they are not traced
+            rays[i] = L.packet->rays[L.lane];
+            si[i] = act[i] ? L.si : nullptr;
+        }
+        scene.intersect8(rays, act, si, hit);
+        for (int i = 0; i < 8 && b + i < m; ++i) lanes[b + i].packet->hit[lanes[b + i].lane] = hit[i];
+    }
+}
+
 void shift_from_camera_packet(const Scene& scene, const Shift& shift, const ShiftConfig& config,
                               const CameraPath& base, const CameraPacket& packet, OffsetPath out[4]) {
     complete_offsets4(scene, shift, config, base, packet.rays + 1, packet.traced + 1, packet.hit + 1, out);
