@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "gdr/cli/commands.h"
 #include "gdr/eval/equal_time.h"
 #include "gdr/eval/plot.h"
 #include "gdr/integrators/integrator.h"
@@ -87,16 +88,16 @@ Options parse(int argc, char** argv) {
         else if (a == "--references-only") o.references_only = true;
         else if (a == "--refresh-references") o.refresh = true;
         else if (a == "--scenes") o.scenes = split(next());
-        else if (a == "--width") o.width = int(bench::int_option(a, next(), 1, 65536)), width_set = true;
+        else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
             o.budgets.clear();
-            for (const std::string& b : split(next())) o.budgets.push_back(bench::positive_option(a, b));
+            for (const std::string& b : split(next())) o.budgets.push_back(cli::ArgReader::parse_real(a, b));
             budgets_set = true;
-        } else if (a == "--ref-spp") o.ref_spp = bench::int_option(a, next(), 1, 1LL << 32), spp_set = true;
+        } else if (a == "--ref-spp") o.ref_spp = cli::ArgReader::parse_int(a, next(), 1, 1LL << 32), spp_set = true;
         else if (a == "--out") o.out = next();
         else if (a == "--cache") o.cache = next();
         else if (a == "--docs") o.docs = next();
-        else if (a == "--threads") o.threads = int(bench::int_option(a, next(), 0, 1 << 16));
+        else if (a == "--threads") o.threads = int(cli::ArgReader::parse_int(a, next(), 0, 1 << 16));
         else if (a == "-h" || a == "--help") {
             std::printf("usage: bench_equal_time [--quick] [--references-only] [--refresh-references] [--scenes a,b]\n"
                         "         [--width W] [--budgets s1,s2,..] [--ref-spp N] [--out DIR] [--cache DIR] [--docs DIR]\n"

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
@@ -59,7 +60,7 @@ int main(int argc, char** argv) {
         }
         const std::string path = argc > 1 ? argv[1] : GDR_SOURCE_DIR "/scenes/cornell-box/scene.json";
         int repeats = 3;
-        if (argc > 2) repeats = int(bench::int_option("repeats", argv[2], 1, 10000));
+        if (argc > 2) repeats = int(cli::ArgReader::parse_int("repeats", argv[2], 1, 10000));
         return run(path, repeats);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench_gpt: error: %s\n", e.what());

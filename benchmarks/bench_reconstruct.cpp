@@ -25,6 +25,7 @@
 
 #include <tbb/info.h>
 
+#include "gdr/cli/commands.h"
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/poisson.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -112,7 +113,7 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) {
             try {
-                reps = int(gdr::bench::int_option("--reps", argv[++i], 1, 10000));
+                reps = int(gdr::cli::ArgReader::parse_int("--reps", argv[++i], 1, 10000));
             } catch (const std::exception& e) {
                 std::fprintf(stderr, "bench_reconstruct: error: %s\n", e.what());
                 return 2;

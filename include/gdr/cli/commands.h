@@ -41,6 +41,10 @@ struct ArgReader {
     long long int_value(const std::string& opt, long long lo, long long hi);
     /// The value of `opt` as a finite real number (throws naming the option if malformed, NaN or infinite).
     double real_value(const std::string& opt);
+    /// `v`, the text given for option `opt`, as an integer in [lo, hi] (throws naming the option otherwise).
+    static long long parse_int(const std::string& opt, const std::string& v, long long lo, long long hi);
+    /// `v`, the text given for option `opt`, as a finite real number (throws naming the option otherwise).
+    static double parse_real(const std::string& opt, const std::string& v);
 };
 
 }  // namespace gdr::cli
