@@ -41,10 +41,6 @@ double ArgReader::parse_real(const std::string& opt, const std::string& v) {
     return x;
 }
 
-long long ArgReader::int_value(const std::string& opt) {
-    return parse_int(opt, value(opt), std::numeric_limits<long long>::min(), std::numeric_limits<long long>::max());
-}
-
 long long ArgReader::int_value(const std::string& opt, long long lo, long long hi) { return parse_int(opt, value(opt), lo, hi); }
 
 double ArgReader::real_value(const std::string& opt) { return parse_real(opt, value(opt)); }

@@ -35,9 +35,7 @@ struct ArgReader {
     const std::string& next() { return args[i++]; }
     /// The value following option `opt`; throws naming the option if absent.
     std::string value(const std::string& opt);
-    /// The value of `opt` as an integer (throws naming the option if malformed or out of range).
-    long long int_value(const std::string& opt);
-    /// int_value() that must lie in [lo, hi] (throws naming the option and the bounds otherwise).
+    /// The value of `opt` as an integer in [lo, hi] (throws naming the option if malformed or out of range).
     long long int_value(const std::string& opt, long long lo, long long hi);
     /// The value of `opt` as a finite real number (throws naming the option if malformed, NaN or infinite).
     double real_value(const std::string& opt);
