@@ -27,6 +27,18 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         mat.wo_side_only = mat.bsdf->wo_side_only();
         mat.black = mat.bsdf->is_black();
     }
+    // Inconsistent arrays (a caller building the mesh itself) would be read out of bounds.
+    const auto sizes = [&] {
+        return " (" + std::to_string(mesh.positions.size()) + " positions, " + std::to_string(mesh.normals.size()) +
+               " normals, " + std::to_string(mesh.uvs.size()) + " uvs, " + std::to_string(mesh.material_ids.size()) +
+               " material ids)";
+    };
+    if (mesh.positions.size() != 3 * mesh.material_ids.size())
+        throw InputError(origin + ": a mesh needs three positions per material id" + sizes());
+    if (!mesh.normals.empty() && mesh.normals.size() != mesh.positions.size())
+        throw InputError(origin + ": a mesh's normals, if any, must match its positions one to one" + sizes());
+    if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
+        throw InputError(origin + ": a mesh's uvs, if any, must match its positions one to one" + sizes());
     // Validate and compact: non-finite vertices are an error, zero-area triangles are dropped.
     TriangleMesh m;
     const bool has_n = !mesh.normals.empty(), has_uv = !mesh.uvs.empty();

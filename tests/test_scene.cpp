@@ -140,6 +140,16 @@ TEST_CASE("scene: non-finite vertices and dangling material ids are errors namin
     CHECK_THAT(error_of([&] { Scene(m, one_material(), Camera(), "mem"); }), Contains("mem") && Contains("material"));
     CHECK_THAT(error_of([&] { Scene(TriangleMesh{}, one_material(), Camera(), "mem"); }), Contains("no (non-degenerate)"));
     CHECK_THAT(error_of([&] { Scene(soup({a, b, b}), one_material(), Camera(), "mem"); }), Contains("no (non-degenerate)"));
+    // Arrays that disagree in length would be read out of bounds.
+    TriangleMesh extra = soup({a, b, c});
+    extra.material_ids.push_back(0);
+    CHECK_THAT(error_of([&] { Scene(extra, one_material(), Camera(), "mem"); }), Contains("mem") && Contains("positions"));
+    TriangleMesh few_normals = soup({a, b, c});
+    few_normals.normals = {Vec3(0, 0, 1)};
+    CHECK_THAT(error_of([&] { Scene(few_normals, one_material(), Camera(), "mem"); }), Contains("normals"));
+    TriangleMesh few_uvs = soup({a, b, c});
+    few_uvs.uvs = {Vec2(0.f), Vec2(1.f)};
+    CHECK_THAT(error_of([&] { Scene(few_uvs, one_material(), Camera(), "mem"); }), Contains("uvs"));
 }
 
 TEST_CASE("scene: hits report position, winding normal, material and one-sided emission", "[scene]") {
