@@ -7,7 +7,8 @@
 // rtcIntersect1 / rtcOccluded1 only, no shading, on the same threads. The replay
 // casts the same number and kinds of rays in the same distribution and order,
 // so (b) bounds what any shading could reach. Medians over repeats are quoted;
-// both halves run in the same process, back to back. Wall-clock figures
+// both halves run in the same process, back to back, (a) first in even runs
+// and (b) first in odd ones. Wall-clock figures
 // swing with other programs on a shared machine, so the ratio is also given
 // in process CPU time (user + system, all threads), which other programs do
 // not inflate; that is the figure to quote when the machine is busy.
@@ -148,12 +149,23 @@ bool bench_scene(const std::string& path, long long spp, int repeats, int thread
         st.spp = spp;
         st.threads = threads;
         st.seed = uint64_t(i);
-        const double c0 = gdr::bench::cpu_seconds();
-        const gdr::RenderStats s = pt->render(scene, st, fb, {});
-        const double c1 = gdr::bench::cpu_seconds();
+        // The two halves take turns going first, so that a drift of the
+        // machine within a run does not favour one of them in the median.
+        gdr::RenderStats s;
         uint64_t hits = 0;
-        const double tb = replay(static_cast<RTCScene>(scene.embree_scene()), rec.rays, spp, arena, hits);
-        const double c2 = gdr::bench::cpu_seconds();
+        double tb = 0.0, pt_cpu = 0.0, bound_cpu = 0.0;
+        const auto run_pt = [&] {
+            const double c0 = gdr::bench::cpu_seconds();
+            s = pt->render(scene, st, fb, {});
+            pt_cpu = gdr::bench::cpu_seconds() - c0;
+        };
+        const auto run_bound = [&] {
+            const double c0 = gdr::bench::cpu_seconds();
+            tb = replay(static_cast<RTCScene>(scene.embree_scene()), rec.rays, spp, arena, hits);
+            bound_cpu = gdr::bench::cpu_seconds() - c0;
+        };
+        if (i % 2 == 0) run_pt(), run_bound();
+        else run_bound(), run_pt();
         const double rays_b = double(rec.rays.size()) * double(spp);
         const double rps = double(s.rays) / s.seconds, rps_b = rays_b / tb;
         const double rays_per_sample = double(s.rays) / double(s.samples);
@@ -163,10 +175,10 @@ bool bench_scene(const std::string& path, long long spp, int repeats, int thread
         bound_sps.push_back(rps_b / rays_per_sample);
         ratio.push_back(rps / rps_b);
         // Rays per CPU second of each, in ratio.
-        cpu_ratio.push_back((double(s.rays) / (c1 - c0)) / (rays_b / (c2 - c1)));
+        cpu_ratio.push_back((double(s.rays) / pt_cpu) / (rays_b / bound_cpu));
         fmt::print("  run {}: PT {:.3f} s ({:.3f} s CPU), {:.3f} M rays, {:.2f} M rays/s | bound {:.3f} s ({:.3f} s CPU), "
                    "{:.3f} M rays, {:.2f} M rays/s, {} hits | ratio {:.3f} wall, {:.3f} CPU\n",
-                   i, s.seconds, c1 - c0, s.rays * 1e-6, rps * 1e-6, tb, c2 - c1, rays_b * 1e-6, rps_b * 1e-6, hits,
+                   i, s.seconds, pt_cpu, s.rays * 1e-6, rps * 1e-6, tb, bound_cpu, rays_b * 1e-6, rps_b * 1e-6, hits,
                    ratio.back(), cpu_ratio.back());
     }
     const double r = median(cpu_ratio);
