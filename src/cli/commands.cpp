@@ -49,6 +49,7 @@ std::string usage() {
     return "usage:\n"
            "  gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N]\n"
            "             [--seed S] [--set key=value]... [--resume PREVIOUS.exr] [--exposure STOPS] -o OUT.exr\n"
+           "  gdr merge A.exr B.exr [...] -o OUT.exr   (independent renders of one scene and integrator)\n"
            "  gdr info FILE.exr\n"
            "  gdr reconstruct IN.exr|NAME-primal.exr [--method poisson-l1|poisson-l2] [--alpha A] [--set k=v] -o OUT.exr\n"
            "  gdr compare IMAGE.exr REFERENCE.exr [--layer NAME]\n"
@@ -71,6 +72,7 @@ int run(const std::vector<std::string>& args) {
     const std::string& cmd = args[0];
     if (cmd == "render") return render(rest);
     if (cmd == "info") return info(rest);
+    if (cmd == "merge") return merge(rest);
     if (cmd == "list") return list_plugins();
     if (cmd == "check-shift") return check_shift(rest);
     if (cmd == "reconstruct") return reconstruct(rest);

@@ -27,41 +27,6 @@ namespace {
 // More threads than this is a typing error, not a machine.
 constexpr long long kMaxThreads = 1 << 16;
 
-// A non-negative integer entry `key` of a previous render's metadata (read from `file`).
-uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key) {
-    const std::string& v = fb.metadata().at(key);
-    char* end = nullptr;
-    errno = 0;
-    const unsigned long long x = std::strtoull(v.c_str(), &end, 10);
-    if (v.empty() || *end || v[0] == '-' || errno == ERANGE)
-        throw InputError(file + ": metadata entry '" + key + "' is not a sample count or seed: '" + v + "'");
-    return x;
-}
-
-// A previous render's time in seconds from its metadata (read from `file`); 0 if it has none.
-double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
-    const auto it = fb.metadata().find("render_seconds");
-    if (it == fb.metadata().end()) return 0.0;
-    char* end = nullptr;
-    const double x = std::strtod(it->second.c_str(), &end);
-    if (it->second.empty() || *end || !(x >= 0.0))
-        throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
-    return x;
-}
-
-// Throws, naming the path, unless `path` can be created as a file: checked
-// before rendering, so that a typing error costs no render time.
-void check_output_path(const std::string& path) {
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    if (fs::is_directory(path, ec)) throw InputError("cannot write '" + path + "': it is a directory");
-    fs::path dir = fs::path(path).parent_path();
-    if (dir.empty()) dir = ".";
-    if (!fs::is_directory(dir, ec)) throw InputError("cannot write '" + path + "': no directory '" + dir.string() + "'");
-    if (access(dir.c_str(), W_OK) != 0)
-        throw InputError("cannot write '" + path + "': directory '" + dir.string() + "' is not writable");
-}
-
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_sigint(int) { g_interrupted = true; }
 
@@ -99,6 +64,39 @@ private:
 };
 
 }  // namespace
+
+uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key) {
+    const auto it = fb.metadata().find(key);
+    if (it == fb.metadata().end()) throw InputError(file + ": not a gdr render (no '" + key + "' entry)");
+    const std::string& v = it->second;
+    char* end = nullptr;
+    errno = 0;
+    const unsigned long long x = std::strtoull(v.c_str(), &end, 10);
+    if (v.empty() || *end || v[0] == '-' || errno == ERANGE)
+        throw InputError(file + ": metadata entry '" + key + "' is not a sample count or seed: '" + v + "'");
+    return x;
+}
+
+void check_output_path(const std::string& path) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) throw InputError("cannot write '" + path + "': it is a directory");
+    fs::path dir = fs::path(path).parent_path();
+    if (dir.empty()) dir = ".";
+    if (!fs::is_directory(dir, ec)) throw InputError("cannot write '" + path + "': no directory '" + dir.string() + "'");
+    if (access(dir.c_str(), W_OK) != 0)
+        throw InputError("cannot write '" + path + "': directory '" + dir.string() + "' is not writable");
+}
+
+double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
+    const auto it = fb.metadata().find("render_seconds");
+    if (it == fb.metadata().end()) return 0.0;
+    char* end = nullptr;
+    const double x = std::strtod(it->second.c_str(), &end);
+    if (it->second.empty() || *end || !(x >= 0.0))
+        throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
+    return x;
+}
 
 std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {
     try {
@@ -157,6 +155,9 @@ int render(const std::vector<std::string>& args) {
         const auto& m = previous.metadata();
         for (const char* k : {"spp", "seed", "first_sample", "integrator", "scene"})
             if (!m.count(k)) throw InputError(resume_path + ": not a gdr render (no '" + std::string(k) + "' entry)");
+        if (m.at("seed") == kMixedSeeds)
+            throw InputError(resume_path + ": merged from renders with different seeds, so it has no sample "
+                             "sequence to continue; render more with a new seed and merge (gdr merge)");
         // Checked before rendering, so that a bad entry cannot cost the new samples.
         previous_seconds = metadata_seconds(previous, resume_path);
     }

@@ -2,6 +2,7 @@
 // them. Each returns the process exit code and throws gdr::Error on bad input.
 #pragma once
 
+#include <cstdint>
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -15,6 +16,25 @@ int run(const std::vector<std::string>& args);
 
 /// gdr render SCENE.json [options] -o OUT.exr
 int render(const std::vector<std::string>& args);
+/// gdr merge A.exr B.exr [...] -o OUT.exr
+int merge(const std::vector<std::string>& args);
+
+/// The "seed" (and "first_sample") metadata of a render merged from several
+/// seeds: it has no single sample sequence, so --resume refuses it.
+inline const std::string kMixedSeeds = "mixed";
+
+/// Throws an InputError naming `path` unless a file can be created there:
+/// checked before rendering, so that a typing error costs no render time.
+void check_output_path(const std::string& path);
+
+/// The non-negative integer metadata entry `key` of a render read from `file`
+/// (throws an InputError naming both if it is missing or malformed).
+uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key);
+
+/// The "render_seconds" metadata of a render read from `file`, 0 if it has
+/// none (throws an InputError naming both if it is malformed).
+double metadata_seconds(const FrameBuffer& fb, const std::string& file);
+
 /// Writes `fb` to `path` and returns it; if that fails (disk full, directory
 /// gone), writes it to a rescue file in the temporary directory and throws a
 /// RuntimeFailure naming both, so that a finished render is never lost.
