@@ -271,6 +271,14 @@ TEST_CASE("cli: merge pools independent renders and refuses to count samples twi
                Contains("different seeds"));
     CHECK_THAT(error_of({"merge", out("part1.exr"), "-o", out("bad.exr")}), Contains("two"));
     CHECK_FALSE(fs::exists(out("bad.exr")));
+    // Renders of an integrator that another program registered still merge (its mean layers).
+    for (const char* part : {"part1", "part2"}) {
+        FrameBuffer fb = read_exr(out(std::string(part) + ".exr"));
+        fb.metadata()["integrator"] = "registered-elsewhere";
+        write_exr(out(std::string(part) + "-elsewhere.exr"), fb);
+    }
+    REQUIRE(cli::run({"merge", out("part1-elsewhere.exr"), out("part2-elsewhere.exr"), "-o", out("elsewhere.exr")}) == 0);
+    CHECK(read_exr(out("elsewhere.exr")).get("color").values() == cm);
 }
 
 TEST_CASE("cli: merging gradient-domain renders reconstructs the pooled buffers", "[cli]") {

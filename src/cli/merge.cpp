@@ -101,7 +101,15 @@ int merge(const std::vector<std::string>& args) {
         seconds += metadata_seconds(parts[i].fb, parts[i].file);
         interrupted |= m.count("interrupted") && m.at("interrupted") == "true";
     }
-    integrator_of(parts[0])->update_merged(merged);
+    // An integrator registered by another program is unknown here; its
+    // non-mean layers (if it has any) cannot be recomputed, only averaged.
+    std::unique_ptr<Integrator> integrator;
+    try {
+        integrator = integrator_of(parts[0]);
+    } catch (const ParameterError& e) {
+        fmt::print(stderr, "warning: {}; layers that are not sample means, if any, are averaged\n", e.what());
+    }
+    if (integrator) integrator->update_merged(merged);
 
     // One seed in one unbroken range of sample numbers is a render that --resume can continue.
     std::vector<const Part*> order;
