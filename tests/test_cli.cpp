@@ -3,6 +3,7 @@
 // record their settings, and --resume continues a render exactly.
 #include <catch2/catch.hpp>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -185,6 +186,9 @@ TEST_CASE("cli: an unwritable output is refused before rendering, and a failed w
     const std::string ok = kScenes + "bad/ok.json";
     CHECK_THAT(error_of({"render", ok, "-o", out("no-such-dir/x.exr")}), Contains("no-such-dir"));
     CHECK_THAT(error_of({"render", ok, "-o", out_dir().string()}), Contains("directory"));
+    // An EXR writer seeks back, so a pipe cannot take one: refused before rendering.
+    REQUIRE(mkfifo(out("pipe.exr").c_str(), 0600) == 0);
+    CHECK_THAT(error_of({"render", ok, "-o", out("pipe.exr")}), Contains("pipe"));
     // A write that fails after rendering (here: its directory is gone) leaves the image in a rescue file.
     REQUIRE(cli::run({"render", ok, "--spp", "2", "-o", out("rescued.exr")}) == 0);
     const FrameBuffer fb = read_exr(out("rescued.exr"));

@@ -288,6 +288,32 @@ TEST_CASE("exr: write errors are RuntimeFailures naming the path", "[io]") {
     REQUIRE_THROWS_AS(write_exr(tmp / "empty.exr", FrameBuffer(4, 4)), ParameterError);
 }
 
+TEST_CASE("exr, png: writing through a symlink updates its target and keeps the link", "[io]") {
+    // The temporary-then-rename write would otherwise replace the link with a
+    // file (and, run as root on -o /dev/null, the device with a file).
+    TempDir tmp;
+    const std::string target = tmp / "target.exr", link = tmp / "link.exr";
+    write_exr_image(target, Image(2, 2, 3, 1.f));
+    std::filesystem::create_symlink(target, link);
+    write_exr_image(link, Image(2, 2, 3, 5.f));
+    CHECK(std::filesystem::is_symlink(link));
+    CHECK(read_exr_rgb(target).at(1, 1, 0) == 5.f);
+    const std::string png_target = tmp / "target.png", png_link = tmp / "link.png";
+    write_png_preview(png_target, Image(2, 2, 3, 0.f));
+    std::filesystem::create_symlink(png_target, png_link);
+    write_png_preview(png_link, Image(2, 2, 3, 1.f));
+    CHECK(std::filesystem::is_symlink(png_link));
+    int w = 0, h = 0, c = 0;
+    unsigned char* px = stbi_load(png_target.c_str(), &w, &h, &c, 3);
+    REQUIRE(px);
+    CHECK(px[0] == 255);
+    stbi_image_free(px);
+    // No temporaries are left beside them: two targets, two links.
+    int entries = 0;
+    for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(tmp.dir)) ++entries;
+    CHECK(entries == 4);
+}
+
 TEST_CASE("png: sRGB preview with exposure and clamping is readable", "[io]") {
     TempDir tmp;
     Image img(3, 2, 3);

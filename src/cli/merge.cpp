@@ -11,7 +11,6 @@
 #include "gdr/core/params.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
-#include "gdr/io/png.h"
 
 namespace gdr::cli {
 
@@ -127,13 +126,9 @@ int merge(const std::vector<std::string>& args) {
     for (const Part& p : parts) from += (from.empty() ? "" : ", ") + std::filesystem::absolute(p.file).string();
     meta["merged_from"] = from;
 
-    write_exr_or_rescue(out, merged);
-    const std::string png = std::filesystem::path(out).replace_extension(".png").string();
-    const std::string preview =
-        merged.has("reconstruction_l1") ? "reconstruction_l1" : merged.has("color") ? "color" : merged.names().front();
-    write_png_preview(png, merged.get(preview));
-    fmt::print(stderr, "merged {} renders, {} spp in all{} -> {} and {}\n", parts.size(), meta.at("spp"),
-               one_sequence ? "" : " (several seeds: not resumable)", out, png);
+    const std::string preview = write_render(out, merged);
+    fmt::print(stderr, "merged {} renders, {} spp in all{} -> {}{}\n", parts.size(), meta.at("spp"),
+               one_sequence ? "" : " (several seeds: not resumable)", out, preview.empty() ? "" : " and " + preview);
     return 0;
 }
 

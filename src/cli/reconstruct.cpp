@@ -5,7 +5,6 @@
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
-#include "gdr/io/png.h"
 #include "gdr/metrics.h"
 #include "gdr/reconstruct/reconstructor.h"
 
@@ -41,6 +40,7 @@ int reconstruct(const std::vector<std::string>& args) {
     }
     if (in.empty()) throw ParameterError("reconstruct: no input given\n" + usage());
     if (out.empty()) throw ParameterError("reconstruct: no output given (-o OUT.exr)");
+    check_output_path(out);
 
     GradientFrame frame;
     FrameBuffer fb;
@@ -75,11 +75,9 @@ int reconstruct(const std::vector<std::string>& args) {
     result.metadata()["reconstruction"] = method;
     result.metadata()["reconstruction_params"] = rec->describe();
     result.metadata()["reconstruction_input"] = std::filesystem::absolute(in).string();
-    write_exr(out, result);
-    const std::string png = std::filesystem::path(out).replace_extension(".png").string();
-    write_png_preview(png, img);
-    fmt::print(stderr, "reconstructed {} ({}x{}) with {} -> {} and {}\n", layout, img.width(), img.height(), method, out,
-               png);
+    const std::string preview = write_render(out, result);
+    fmt::print(stderr, "reconstructed {} ({}x{}) with {} -> {}{}\n", layout, img.width(), img.height(), method, out,
+               preview.empty() ? "" : " and " + preview);
     return 0;
 }
 

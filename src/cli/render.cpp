@@ -81,6 +81,8 @@ void check_output_path(const std::string& path) {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (fs::is_directory(path, ec)) throw InputError("cannot write '" + path + "': it is a directory");
+    if (fs::is_fifo(path, ec) || fs::is_socket(path, ec))
+        throw InputError("cannot write '" + path + "': an EXR cannot go to a pipe (its writer seeks back)");
     fs::path dir = fs::path(path).parent_path();
     if (dir.empty()) dir = ".";
     if (!fs::is_directory(dir, ec)) throw InputError("cannot write '" + path + "': no directory '" + dir.string() + "'");
@@ -96,6 +98,18 @@ double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
     if (it->second.empty() || *end || !(x >= 0.0))
         throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
     return x;
+}
+
+std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure) {
+    write_exr_or_rescue(out, fb);
+    // A device or pipe (-o /dev/null) gets no preview: it would be a stray file in /dev.
+    std::error_code ec;
+    if (std::filesystem::exists(out, ec) && !std::filesystem::is_regular_file(out, ec)) return "";
+    const std::string png = std::filesystem::path(out).replace_extension(".png").string();
+    // A gradient-domain render is shown as its L1 reconstruction, anything else as its colour.
+    const std::string layer = fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.has("color") ? "color" : fb.names().front();
+    write_png_preview(png, fb.get(layer), exposure);
+    return png + " (" + layer + ")";
 }
 
 std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {
@@ -228,11 +242,7 @@ int render(const std::vector<std::string>& args) {
         previous.metadata()["render_seconds"] = fmt::format("{:.3f}", previous_seconds + rs.seconds);
         fb = std::move(previous);
     }
-    write_exr_or_rescue(out_path, fb);
-    const std::string png = std::filesystem::path(out_path).replace_extension(".png").string();
-    // A gradient-domain render is shown as its L1 reconstruction, anything else as its colour.
-    const std::string preview = fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.has("color") ? "color" : fb.names().front();
-    write_png_preview(png, fb.get(preview), float(exposure));
+    const std::string preview = write_render(out_path, fb, float(exposure));
 
     fmt::print(stderr, "{} {} spp in {:.2f} s: {:.2f} M samples/s, {:.2f} M rays/s\n",
                g_interrupted ? "interrupted after" : "rendered", rs.spp, rs.seconds,
@@ -246,7 +256,7 @@ int render(const std::vector<std::string>& args) {
     }
     fmt::print(stderr, "wrote {} (layers:", out_path);
     for (const auto& n : fb.names()) fmt::print(stderr, " {}", n);
-    fmt::print(stderr, ") and {} ({})\n", png, preview);
+    fmt::print(stderr, "){}\n", preview.empty() ? "" : " and " + preview);
     return g_interrupted ? 130 : 0;
 }
 

@@ -9,6 +9,8 @@
 
 #include "gdr/io/exr.h"
 
+#include "file_target.h"
+
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -19,11 +21,9 @@
 #include <OpenEXR/Iex.h>
 
 #include <algorithm>
-#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <unistd.h>
 
 namespace gdr {
 namespace {
@@ -49,12 +49,6 @@ std::vector<std::string> exr_channel_names(const std::string& layer, int channel
     std::vector<std::string> names;
     for (const auto& s : channel_suffixes(channels)) names.push_back(bare ? s : layer + "." + s);
     return names;
-}
-
-/// A unique sibling path for the temporary file, so concurrent writers never collide.
-std::string temp_path_for(const std::string& path) {
-    static std::atomic<unsigned> counter{0};
-    return path + ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
 }
 
 /// Rank of a channel suffix inside its layer; -1 if it is not part of the
@@ -136,7 +130,8 @@ void write_exr(const std::string& path, const FrameBuffer& fb) {
         if (name.empty()) throw ParameterError(path + ": cannot write a layer with an empty name");
 
     const int w = fb.width(), h = fb.height();
-    const std::string tmp = temp_path_for(path);
+    const io::FileTarget target = io::file_target(path);
+    const std::string& tmp = target.write_path;
     try {
         Imf::Header header(w, h);
         header.compression() = Imf::ZIP_COMPRESSION;
@@ -170,10 +165,9 @@ void write_exr(const std::string& path, const FrameBuffer& fb) {
         }
         os.close();
         if (!os) throw RuntimeFailure("write to '" + tmp + "' failed");
-        std::filesystem::rename(tmp, path);
+        io::commit(target);
     } catch (const std::exception& e) {
-        std::error_code ec;
-        std::filesystem::remove(tmp, ec);
+        io::discard(target);
         throw RuntimeFailure("cannot write EXR '" + path + "': " + e.what());
     }
 }

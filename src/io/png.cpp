@@ -2,14 +2,14 @@
 
 #include "gdr/io/png.h"
 
+#include "file_target.h"
+
 #include <stb/stb_image_write.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <unistd.h>
 #include <vector>
 
 namespace gdr {
@@ -54,20 +54,15 @@ void write_png_preview(const std::string& path, const Image& linear, float expos
         }
     }
 
-    // Same temp-then-rename discipline as the EXR writer.
-    static std::atomic<unsigned> counter{0};
-    const std::string tmp = path + ".tmp" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
-    if (!stbi_write_png(tmp.c_str(), w, h, out_c, bytes.data(), w * out_c)) {
-        std::error_code ec;
-        std::filesystem::remove(tmp, ec);
+    const io::FileTarget target = io::file_target(path);
+    if (!stbi_write_png(target.write_path.c_str(), w, h, out_c, bytes.data(), w * out_c)) {
+        io::discard(target);
         throw RuntimeFailure("cannot write PNG '" + path + "'");
     }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        const std::string why = ec.message();
-        std::filesystem::remove(tmp, ec);
-        throw RuntimeFailure("cannot write PNG '" + path + "': " + why);
+    try {
+        io::commit(target);
+    } catch (const Error& e) {
+        throw RuntimeFailure("cannot write PNG '" + path + "': " + e.what());
     }
 }
 

@@ -35,6 +35,12 @@ uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const st
 /// none (throws an InputError naming both if it is malformed).
 double metadata_seconds(const FrameBuffer& fb, const std::string& file);
 
+/// Writes `fb` to `out` (write_exr_or_rescue) and a PNG preview beside it
+/// (OUT.png): the L1 reconstruction of a gradient-domain render, else its
+/// colour. Returns "PNG (layer)", or "" when `out` is a device or pipe
+/// (-o /dev/null), which gets no preview.
+std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure = 0.f);
+
 /// Writes `fb` to `path` and returns it; if that fails (disk full, directory
 /// gone), writes it to a rescue file in the temporary directory and throws a
 /// RuntimeFailure naming both, so that a finished render is never lost.
