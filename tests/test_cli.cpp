@@ -86,6 +86,7 @@ TEST_CASE("cli: bad command lines name the option", "[cli][errors]") {
     CHECK_THAT(error_of({"render", ok, "--threads", "-2", "-o", out("x.exr")}), Contains("--threads"));
     CHECK_THAT(error_of({"render", ok, "-o"}), Contains("-o"));
     CHECK_THAT(error_of({"frobnicate"}), Contains("'frobnicate'") && Contains("usage"));
+    CHECK_THAT(error_of({"list", "integrators"}), Contains("list") && Contains("'integrators'"));
     CHECK_THAT(error_of({"info", out("none.exr")}), Contains("none.exr"));
     CHECK_THAT(error_of({"render", ok, "--resume", out("none.exr"), "-o", out("x.exr")}), Contains("none.exr"));
 }

@@ -73,7 +73,10 @@ int run(const std::vector<std::string>& args) {
     if (cmd == "render") return render(rest);
     if (cmd == "info") return info(rest);
     if (cmd == "merge") return merge(rest);
-    if (cmd == "list") return list_plugins();
+    if (cmd == "list") {
+        if (!rest.empty()) throw ParameterError("list: takes no arguments, got '" + rest[0] + "'");
+        return list_plugins();
+    }
     if (cmd == "check-shift") return check_shift(rest);
     if (cmd == "reconstruct") return reconstruct(rest);
     if (cmd == "compare") return compare(rest);
