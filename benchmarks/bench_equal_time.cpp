@@ -160,9 +160,15 @@ FrameBuffer get_reference(const Options& o, const SceneSpec& spec, const Scene& 
     const std::string file = (fs::path(o.cache) / name).string();
     file_out = file;
     if (!o.refresh && fs::exists(file)) {
-        FrameBuffer fb = read_exr(file);
-        if (fb.has("color") && fb.has("variance") && fb.metadata().count("spp")) return fb;
-        std::printf("  cached reference %s is incomplete; re-rendering\n", file.c_str());
+        // A damaged cache entry (an interrupted copy, a full disk) is rendered
+        // again rather than ending the benchmark.
+        try {
+            FrameBuffer fb = read_exr(file);
+            if (fb.has("color") && fb.has("variance") && fb.metadata().count("spp")) return fb;
+            std::printf("  cached reference %s is incomplete; re-rendering\n", file.c_str());
+        } catch (const InputError& e) {
+            std::printf("  cached reference unreadable (%s); re-rendering\n", e.what());
+        }
     }
     std::printf("  rendering reference %s (PT, %lld spp) ...\n", file.c_str(), ref_spp);
     std::fflush(stdout);
@@ -190,9 +196,7 @@ FrameBuffer get_reference(const Options& o, const SceneSpec& spec, const Scene& 
     keep.set("color", fb.get("color"));
     keep.set("variance", fb.get("variance"));
     keep.metadata() = fb.metadata();
-    const std::string tmp = file + ".tmp.exr";
-    write_exr(tmp, keep);
-    fs::rename(tmp, file);
+    write_exr(file, keep);  // through a temporary: a reader never sees half a file
     std::printf("  reference done in %.1f s\n", rs.seconds);
     return keep;
 }
