@@ -318,6 +318,13 @@ TEST_CASE("pt: 8 spp resumed by 8 more equals one 16 spp render", "[pt][determin
     for (size_t i = 0; i < full.get("color").values().size(); ++i)
         diff = std::max(diff, double(std::abs(again.get("color").values()[i] - full.get("color").values()[i])));
     CHECK(diff > 1e-3);
+    // A malformed or zero sample count is named, not a bare "stoll" or a division by zero.
+    for (const char* bad : {"many", "0", ""}) {
+        FrameBuffer broken = render(*sf.scene, 1, 9);
+        broken.metadata()["spp"] = bad;
+        FrameBuffer into = render(*sf.scene, 1, 10);
+        CHECK_THROWS_WITH(merge_renders(into, broken), Contains("second") && Contains("spp"));
+    }
 }
 
 namespace {

@@ -1,8 +1,10 @@
 #include "gdr/integrators/integrator.h"
-#include "gdr/integrators/gpt.h"
-#include "gdr/integrators/pt.h"
 
 #include <cmath>
+#include <cstdlib>
+
+#include "gdr/integrators/gpt.h"
+#include "gdr/integrators/pt.h"
 
 namespace gdr {
 
@@ -18,7 +20,13 @@ Registry<Integrator>& integrator_registry() {
 static long long spp_of(const FrameBuffer& fb, const char* which) {
     auto it = fb.metadata().find("spp");
     if (it == fb.metadata().end()) throw ParameterError(std::string("merge: the ") + which + " render has no 'spp' entry");
-    return std::stoll(it->second);
+    char* end = nullptr;
+    const long long n = std::strtoll(it->second.c_str(), &end, 10);
+    // A zero count would divide by zero in the weights; a malformed one would throw a bare "stoll".
+    if (it->second.empty() || *end || n <= 0)
+        throw ParameterError(std::string("merge: the ") + which + " render's 'spp' entry is not a positive count: '" +
+                             it->second + "'");
+    return n;
 }
 
 void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
