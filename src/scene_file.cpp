@@ -179,12 +179,17 @@ void check_vertex_lines(const std::string& path) {
         ++line_no;
         // v x y z [colour], vn x y z, vt u [v [w]]: how many numbers are checked, and how many are required.
         int start, count, required;
-        const char* kind;
+        const char* kind;   // what the line describes
+        const char* value;  // what one of its numbers is called
         const auto blank = [&](size_t i) { return i < line.size() && (line[i] == ' ' || line[i] == '\t'); };
-        if (line.size() >= 2 && line[0] == 'v' && blank(1)) start = 1, count = 3, required = 3, kind = "vertex";
-        else if (line.size() >= 3 && line[0] == 'v' && line[1] == 'n' && blank(2)) start = 2, count = 3, required = 3, kind = "normal";
-        else if (line.size() >= 3 && line[0] == 'v' && line[1] == 't' && blank(2)) start = 2, count = 3, required = 1, kind = "texture coordinate";
-        else continue;
+        if (line.size() >= 2 && line[0] == 'v' && blank(1))
+            start = 1, count = 3, required = 3, kind = "vertex", value = "vertex coordinate";
+        else if (line.size() >= 3 && line[0] == 'v' && line[1] == 'n' && blank(2))
+            start = 2, count = 3, required = 3, kind = "normal", value = "normal component";
+        else if (line.size() >= 3 && line[0] == 'v' && line[1] == 't' && blank(2))
+            start = 2, count = 3, required = 1, kind = "texture coordinate line", value = "texture coordinate";
+        else
+            continue;
         const char* c = line.data() + start;
         const char* end = line.data() + line.size();
         for (int k = 0; k < count; ++k) {
@@ -192,7 +197,7 @@ void check_vertex_lines(const std::string& path) {
             if (c == end || *c == '\r' || *c == '#') {
                 if (k >= required) break;
                 throw InputError(path + ": line " + std::to_string(line_no) + ": a " + kind + " needs " +
-                                 std::to_string(required) + (required == 1 ? " coordinate" : " coordinates"));
+                                 std::to_string(required) + (required == 1 ? " number" : " numbers"));
             }
             const char* tok = c;
             while (c < end && *c != ' ' && *c != '\t' && *c != '\r') ++c;
@@ -203,7 +208,7 @@ void check_vertex_lines(const std::string& path) {
             // Out-of-range values (1e39) parse to inf below; the loader reports those with the element's number.
             if (res.ec == std::errc::result_out_of_range) continue;
             if (res.ec != std::errc() || res.ptr != t.c_str() + t.size() || !std::isfinite(v))
-                throw InputError(path + ": line " + std::to_string(line_no) + ": " + kind + " coordinate '" + t +
+                throw InputError(path + ": line " + std::to_string(line_no) + ": " + value + " '" + t +
                                  "' is not a finite number");
         }
     }
