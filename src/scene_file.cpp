@@ -48,6 +48,16 @@ long long get_integer(const std::string& file, const json& j, const std::string&
     return j.is_number_integer() ? j.get<long long>() : (long long)(v);
 }
 
+std::string get_string(const std::string& file, const json& j, const std::string& key) {
+    if (!j.is_string()) fail(file, "'" + key + "' must be a string");
+    return j.get<std::string>();
+}
+
+bool get_bool(const std::string& file, const json& j, const std::string& key) {
+    if (!j.is_boolean()) fail(file, "'" + key + "' must be true or false");
+    return j.get<bool>();
+}
+
 Vec3 get_vec3(const std::string& file, const json& j, const std::string& key) {
     if (j.is_number()) return Vec3(j.get<float>());
     if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() || !j[2].is_number())
@@ -59,14 +69,14 @@ CameraDesc parse_camera(const std::string& file, const json& j) {
     CameraDesc c;
     json src = j;
     if (j.contains("file")) {
-        const fs::path cam = fs::path(file).parent_path() / j["file"].get<std::string>();
+        const fs::path cam = fs::path(file).parent_path() / get_string(file, j["file"], "camera.file");
         std::ifstream in(cam);
         if (!in) fail(file, "camera file '" + cam.string() + "' not found");
         json base;
         try {
             base = json::parse(in);
         } catch (const json::exception& e) {
-            fail(cam.string(), std::string("malformed JSON: ") + e.what());
+            fail(file, "camera file '" + cam.string() + "' is malformed JSON: " + e.what());
         }
         for (auto it = j.begin(); it != j.end(); ++it)
             if (it.key() != "file") base[it.key()] = it.value();
@@ -138,9 +148,9 @@ MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Overr
         m.ni = get_number(file, j["eta"], where + ".eta");
         if (!(m.ni > 0.f)) fail(file, "'" + where + ".eta' must be positive");
     }
-    if (j.contains("metal")) m.metal = j["metal"].get<bool>();
+    if (j.contains("metal")) m.metal = get_bool(file, j["metal"], where + ".metal");
     if (j.contains("map_kd")) {
-        const std::string t = j["map_kd"].get<std::string>();
+        const std::string t = get_string(file, j["map_kd"], where + ".map_kd");
         m.map_kd = t.empty() ? "" : (fs::path(file).parent_path() / t).string();
     }
     return m;

@@ -358,6 +358,8 @@ TEST_CASE("scene file: unphysical material values are errors naming where they c
     CHECK_THAT(scene_with("kd.json", R"({"wall": {"type": "diffuse", "kd": [2, 2, 2]}})"),
                Contains("kd.json") && Contains("materials.wall") && Contains("Kd"));
     CHECK_THAT(scene_with("ks.json", R"({"wall": {"type": "mirror", "ks": [1, -0.5, 1]}})"), Contains("Ks"));
+    CHECK_THAT(scene_with("metal.json", R"({"wall": {"metal": 1}})"), Contains("materials.wall.metal"));
+    CHECK_THAT(scene_with("map.json", R"({"wall": {"map_kd": 3}})"), Contains("materials.wall.map_kd"));
     CHECK_THAT(scene_with("ke.json", R"({"wall": {"ke": [-1, 0, 0]}})"), Contains("ke.json") && Contains("Ke"));
     // The same rule for an MTL file's own values, named by the OBJ and the material.
     CHECK_THAT(scene_with("mtl.json", "{}", "bright.obj"), Contains("bright.obj") && Contains("'wall'") && Contains("Kd"));
