@@ -7,6 +7,8 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
+#include <vector>
 
 #include <fmt/core.h>
 #include <glm/gtc/matrix_transform.hpp>
@@ -177,6 +179,59 @@ void check_material_colours(const MaterialDesc& d) {
 }  // namespace
 
 namespace {
+// True if `t` is a whole decimal number that is finite in float; with
+// `allow_overflow`, also one too large for float (1e39), which parses to inf.
+bool finite_number(const std::string& t, bool allow_overflow) {
+    if (t.empty()) return false;
+    float v = 0.f;
+    const char* first = t.c_str() + (t[0] == '+' ? 1 : 0);
+    const auto res = std::from_chars(first, t.c_str() + t.size(), v);
+    if (res.ec == std::errc::result_out_of_range) return allow_overflow;
+    return res.ec == std::errc() && res.ptr == t.c_str() + t.size() && std::isfinite(v);
+}
+
+// tinyobjloader reads an MTL number it cannot parse ("Kd nan 0 0", "Ns x")
+// as 0 too, which would silently turn a colour black or a lobe rough; so the
+// numeric lines of a material library are checked first.
+void check_material_lines(const std::string& lib) {
+    static const std::map<std::string, int> kNumbers = {{"Kd", 3}, {"Ks", 3}, {"Ke", 3}, {"Ka", 3}, {"Ns", 1},
+                                                        {"Ni", 1}, {"Pr", 1}, {"Pm", 1}, {"d", 1},  {"Tr", 1},
+                                                        {"illum", 1}};
+    std::ifstream in(lib, std::ios::binary);
+    if (!in) return;  // the reader reports a missing library
+    std::string line;
+    size_t line_no = 0;
+    while (std::getline(in, line)) {
+        ++line_no;
+        std::istringstream words(line);
+        std::string key, t;
+        words >> key;
+        const auto it = kNumbers.find(key);
+        if (it == kNumbers.end()) continue;
+        for (int k = 0; k < it->second && words >> t; ++k) {
+            if (t[0] == '#' || (k == 0 && (t == "spectral" || t == "xyz"))) break;  // a comment; a non-RGB colour
+            if (!finite_number(t, false))
+                throw InputError(lib + ": line " + std::to_string(line_no) + ": " + key + " value '" + t +
+                                 "' is not a finite number");
+        }
+    }
+}
+
+// The material libraries an OBJ names (mtllib lines), relative to its directory.
+std::vector<std::string> material_libraries(const std::string& obj) {
+    std::vector<std::string> libs;
+    std::ifstream in(obj, std::ios::binary);
+    std::string line;
+    while (std::getline(in, line)) {
+        std::istringstream words(line);
+        std::string key, name;
+        words >> key;
+        if (key != "mtllib") continue;
+        while (words >> name) libs.push_back((fs::path(obj).parent_path() / name).string());
+    }
+    return libs;
+}
+
 // tinyobjloader reads a coordinate it cannot parse ("nan", "1,5", "x") as 0,
 // which would silently move a vertex or tilt a normal; so the vertex,
 // normal and texture-coordinate lines are checked first.
@@ -212,12 +267,8 @@ void check_vertex_lines(const std::string& path) {
             const char* tok = c;
             while (c < end && *c != ' ' && *c != '\t' && *c != '\r') ++c;
             const std::string t(tok, c);
-            float v = 0.f;
-            const char* first = t.c_str() + (t[0] == '+' ? 1 : 0);
-            const auto res = std::from_chars(first, t.c_str() + t.size(), v);
             // Out-of-range values (1e39) parse to inf below; the loader reports those with the element's number.
-            if (res.ec == std::errc::result_out_of_range) continue;
-            if (res.ec != std::errc() || res.ptr != t.c_str() + t.size() || !std::isfinite(v))
+            if (!finite_number(t, true))
                 throw InputError(path + ": line " + std::to_string(line_no) + ": " + value + " '" + t +
                                  "' is not a finite number");
         }
@@ -251,6 +302,8 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     };
     if (const std::string why = mtl.empty() ? "" : not_a_file(mtl); !why.empty())
         throw InputError(scene_file + ": meshes[].mtl: " + mtl + why);
+    for (const std::string& lib : mtl.empty() ? material_libraries(path) : std::vector<std::string>{mtl})
+        check_material_lines(lib);
     // With a library of its own the OBJ is parsed from memory: tinyobjloader
     // then reads every `mtllib` from the given text instead of a file.
     bool parsed;

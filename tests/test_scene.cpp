@@ -363,6 +363,13 @@ TEST_CASE("scene file: unphysical material values are errors naming where they c
     CHECK_THAT(scene_with("ke.json", R"({"wall": {"ke": [-1, 0, 0]}})"), Contains("ke.json") && Contains("Ke"));
     // The same rule for an MTL file's own values, named by the OBJ and the material.
     CHECK_THAT(scene_with("mtl.json", "{}", "bright.obj"), Contains("bright.obj") && Contains("'wall'") && Contains("Kd"));
+    // tinyobjloader would read an unparsable MTL number as 0 (a black colour, a sharp lobe).
+    write("nan.obj", "mtllib nan.mtl\nv -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nusemtl wall\nf 1 2 3\n");
+    write("nan.mtl", "newmtl wall\n# a comment\nKd nan 0.5 0.5\n");
+    CHECK_THAT(scene_with("nan-mtl.json", "{}", "nan.obj"), Contains("nan.mtl") && Contains("line 3") && Contains("Kd"));
+    write("x.mtl", "newmtl wall\nNs x\n");
+    write("given.json", R"({"camera": {"width": 4, "height": 4}, "meshes": [{"file": "quad.obj", "mtl": "x.mtl"}]})");
+    CHECK_THAT(error_of([&] { load_scene_file((dir / "given.json").string()); }), Contains("x.mtl") && Contains("Ns"));
     // Values at the limits load.
     CHECK(scene_with("fine.json", R"({"wall": {"type": "roughconductor", "ks": [1, 1, 1], "alpha": 0}})").empty());
     fs::remove_all(dir);
