@@ -394,6 +394,7 @@ private:
     // Most samples whose stages run in turn, and the default: 4, 8 and 16
     // ran alike on the Cornell box, about 7% less CPU time per sample than 1.
     static constexpr int kMaxBatch = 8;
+    static_assert(kMaxBatch <= kMaxCameraBatch, "a batch's camera rays go through one trace_camera_packets() call");
 
     // The sample's slots from its traced base path and offsets.
     void estimate(const Scene& scene, const CameraPath& path, const OffsetPath* offsets, const bool* inside,

@@ -1,5 +1,6 @@
 #include "gdr/shift/offset_path.h"
 
+#include "gdr/core/error.h"
 #include "gdr/core/in_place.h"
 #include "gdr/path/trace.h"
 #include "gdr/shift/half_vector.h"
@@ -260,6 +261,9 @@ void trace_camera_packets(const Scene& scene, int n, const Vec2* film, CameraPat
         int lane;
         SurfaceInteraction* si;
     };
+    if (n < 0 || n > kMaxCameraBatch)
+        throw ParameterError("trace_camera_packets: n must be between 0 and " + std::to_string(kMaxCameraBatch) +
+                             ", got " + std::to_string(n));
     Lane lanes[5 * kMaxCameraBatch];
     int m = 0;
     SurfaceInteraction* first[kMaxCameraBatch][5];
