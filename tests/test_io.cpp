@@ -288,6 +288,26 @@ TEST_CASE("exr: write errors are RuntimeFailures naming the path", "[io]") {
     REQUIRE_THROWS_AS(write_exr(tmp / "empty.exr", FrameBuffer(4, 4)), ParameterError);
 }
 
+TEST_CASE("exr: files written and read with OpenEXR threads are the same as without", "[io]") {
+    TempDir tmp;
+    FrameBuffer fb(37, 29);
+    fb.add("color", 3);
+    for (size_t i = 0; i < fb.get("color").values().size(); ++i) fb.get("color").values()[i] = float(i % 97) * 0.37f;
+    const auto bytes = [](const std::string& path) {
+        std::ifstream in(path, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    set_exr_threads(0);
+    write_exr(tmp / "serial.exr", fb);
+    set_exr_threads(2);
+    write_exr(tmp / "threaded.exr", fb);
+    const FrameBuffer back = read_exr(tmp / "threaded.exr");
+    set_exr_threads(0);
+    CHECK(bytes(tmp / "serial.exr") == bytes(tmp / "threaded.exr"));
+    CHECK(back.get("color").values() == fb.get("color").values());
+    CHECK_THROWS_AS(set_exr_threads(-1), ParameterError);
+}
+
 TEST_CASE("exr, png: writing through a symlink updates its target and keeps the link", "[io]") {
     // The temporary-then-rename write would otherwise replace the link with a
     // file (and, run as root on -o /dev/null, the device with a file).

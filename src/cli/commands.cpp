@@ -1,13 +1,16 @@
 #include "gdr/cli/commands.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <thread>
 
 #include <fmt/core.h>
 
 #include "gdr/core/error.h"
+#include "gdr/io/exr.h"
 
 namespace gdr::cli {
 
@@ -68,6 +71,13 @@ int run(const std::vector<std::string>& args) {
         fmt::print("{}", usage());
         return args.empty() ? 2 : 0;
     }
+    // Writing a 512x512 G-PT render's EXR (25 MB of ZIP-compressed floats)
+    // took 1.15 s on one thread and 0.64 s on two.
+    static const bool exr_threads = [] {
+        set_exr_threads(int(std::max(1u, std::thread::hardware_concurrency())));
+        return true;
+    }();
+    (void)exr_threads;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     const std::string& cmd = args[0];
     if (cmd == "render") return render(rest);

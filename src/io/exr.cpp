@@ -18,6 +18,7 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/Iex.h>
 
 #include <algorithm>
@@ -266,6 +267,11 @@ void write_exr_image(const std::string& path, const Image& img) {
     FrameBuffer fb(img.width(), img.height());
     fb.set("color", img);
     write_exr(path, fb);
+}
+
+void set_exr_threads(int threads) {
+    if (threads < 0) throw ParameterError("set_exr_threads: threads must be >= 0, got " + std::to_string(threads));
+    Imf::setGlobalThreadCount(threads);
 }
 
 }  // namespace gdr

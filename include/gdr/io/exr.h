@@ -22,6 +22,11 @@ FrameBuffer read_exr(const std::string& path);
 /// layer); throws InputError naming the file if it holds something else.
 Image read_exr_rgb(const std::string& path);
 
+/// Sets how many threads OpenEXR uses to compress and decompress (0: none,
+/// the calling thread does it all). The setting is process-wide, so the
+/// library never changes it on its own; the `gdr` tool uses every core.
+void set_exr_threads(int threads);
+
 /// Writes one RGB(A) or grey image as a plain single-layer EXR (bare channels).
 void write_exr_image(const std::string& path, const Image& img);
 
