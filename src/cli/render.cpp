@@ -28,7 +28,13 @@ namespace {
 constexpr long long kMaxThreads = 1 << 16;
 
 std::atomic<bool> g_interrupted{false};
-extern "C" void on_sigint(int) { g_interrupted = true; }
+std::atomic<int> g_signal{0};  // the signal that interrupted the render
+// SIGTERM too: a batch scheduler ending a job sends it (before SIGKILL),
+// and the samples taken so far should still reach the file.
+extern "C" void on_stop_signal(int sig) {
+    g_signal = sig;
+    g_interrupted = true;
+}
 
 // Prints progress: a redrawn bar on a terminal, a plain line every 10% otherwise.
 class ProgressPrinter {
@@ -220,12 +226,15 @@ int render(const std::vector<std::string>& args) {
     if (!sf.scene->has_lights()) fmt::print(stderr, "warning: the scene has no emitters; the image will be black\n");
 
     g_interrupted = false;
-    auto old_handler = std::signal(SIGINT, on_sigint);
+    g_signal = 0;
+    auto old_int = std::signal(SIGINT, on_stop_signal);
+    auto old_term = std::signal(SIGTERM, on_stop_signal);
     ProgressPrinter printer;
     FrameBuffer fb;
     RenderStats rs = integrator->render(*sf.scene, st, fb, [&](const Progress& p) { printer(p); });
     printer.finish();
-    std::signal(SIGINT, old_handler);
+    std::signal(SIGINT, old_int);
+    std::signal(SIGTERM, old_term);
 
     auto& meta = fb.metadata();
     meta["integrator"] = name;
@@ -257,7 +266,7 @@ int render(const std::vector<std::string>& args) {
     fmt::print(stderr, "wrote {} (layers:", out_path);
     for (const auto& n : fb.names()) fmt::print(stderr, " {}", n);
     fmt::print(stderr, "){}\n", preview.empty() ? "" : " and " + preview);
-    return g_interrupted ? 130 : 0;
+    return g_interrupted ? 128 + (g_signal ? g_signal.load() : SIGINT) : 0;  // the shell's convention
 }
 
 int info(const std::vector<std::string>& args) {
