@@ -1,5 +1,6 @@
 #include "gdr/core/params.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <sstream>
@@ -25,8 +26,10 @@ void Params::set_from_text(const std::string& a) {
     const std::string key = a.substr(0, eq), text = a.substr(eq + 1);
     if (text == "true" || text == "false") return set(key, text == "true");
     char* end = nullptr;
+    errno = 0;
     const long long i = std::strtoll(text.c_str(), &end, 10);
-    if (!text.empty() && *end == '\0') return set(key, i);
+    // Out of range, strtoll saturates: the text is kept as the real it is (get_int then refuses it).
+    if (!text.empty() && *end == '\0' && errno != ERANGE) return set(key, i);
     const double d = std::strtod(text.c_str(), &end);
     if (!text.empty() && *end == '\0') return set(key, d);
     set(key, text);

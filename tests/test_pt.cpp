@@ -498,6 +498,14 @@ TEST_CASE("pt: parameters are validated", "[pt][errors]") {
     CHECK_THROWS_AS(integrator_registry().create("pt", [] { Params p; p.set("rr_depth", 0LL); return p; }()), ParameterError);
     CHECK_THROWS_WITH(integrator_registry().create("pt", [] { Params p; p.set("mx_depth", 3LL); return p; }()),
                       Catch::Contains("'mx_depth'"));
+    // Values that would wrap around when narrowed to int (3e9 became a negative depth).
+    for (const char* text : {"max_depth=3000000000", "rr_depth=4294967297", "rr_depth=99999999999999999999"})
+        for (const char* integ : {"pt", "gpt"}) {
+            Params p;
+            p.set_from_text(text);
+            INFO(integ << " " << text);
+            CHECK_THROWS_AS(integrator_registry().create(integ, p), ParameterError);
+        }
 }
 
 TEST_CASE("pt: images do not depend on how many camera rays share a packet", "[pt][determinism]") {

@@ -1,6 +1,8 @@
 // Gradient-domain path tracing: every base path is shifted to its four
 // neighbours; the MIS-weighted differences give the gradients dx, dy and the
 // weighted base and offset contributions give the primal image.
+#include <tuple>
+
 #include "gdr/integrators/gpt.h"
 
 #include <tbb/parallel_for.h>
@@ -231,8 +233,7 @@ public:
         config_.probabilistic = p.get_choice("classification", "hard", {"hard", "probabilistic"}) == "probabilistic";
         mis_.heuristic = p.get_choice("mis", "power", {"power", "balance"}) == "power" ? MisHeuristic::Power
                                                                                         : MisHeuristic::Balance;
-        trace_.max_depth = int(p.get_int("max_depth", -1));
-        trace_.rr_depth = int(p.get_int("rr_depth", 5));
+        std::tie(trace_.max_depth, trace_.rr_depth) = depth_params(p, "gpt");
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         batch_ = batch_param(p, "gpt", kMaxBatch);
@@ -242,8 +243,6 @@ public:
         alpha_ = p.get_real("alpha", 0.2);
         if (!(alpha_ > 0.0)) throw ParameterError("gpt: alpha must be positive");
         if (!(config_.threshold >= 0.f)) throw ParameterError("gpt: threshold must be >= 0");
-        if (trace_.max_depth == 0 || trace_.max_depth < -1) throw ParameterError("gpt: max_depth must be -1 (unlimited) or >= 1");
-        if (trace_.rr_depth < 1) throw ParameterError("gpt: rr_depth must be >= 1");
     }
 
     std::string describe() const override {

@@ -1,5 +1,7 @@
 // Unidirectional path tracing with next-event estimation and multiple
 // importance sampling (power heuristic) between light and BSDF sampling.
+#include <tuple>
+
 #include "gdr/integrators/common.h"
 #include "gdr/integrators/path_dims.h"
 #include "gdr/integrators/pt.h"
@@ -18,11 +20,8 @@ constexpr int kPacket = 8;
 class PathTracer final : public TiledIntegrator {
 public:
     explicit PathTracer(const Params& p) {
-        max_depth_ = int(p.get_int("max_depth", -1));
-        rr_depth_ = int(p.get_int("rr_depth", 5));
+        std::tie(max_depth_, rr_depth_) = depth_params(p, "pt");
         nee_ = p.get_bool("nee", true);
-        if (max_depth_ == 0 || max_depth_ < -1) throw ParameterError("pt: max_depth must be -1 (unlimited) or >= 1");
-        if (rr_depth_ < 1) throw ParameterError("pt: rr_depth must be >= 1");
         batch_ = batch_param(p, "pt", kPacket);
     }
 

@@ -73,6 +73,17 @@ int TiledIntegrator::batch_param(const Params& p, const std::string& who, int ma
     return int(batch);
 }
 
+std::pair<int, int> TiledIntegrator::depth_params(const Params& p, const std::string& who) {
+    const long long max_depth = p.get_int("max_depth", -1), rr_depth = p.get_int("rr_depth", 5);
+    if (max_depth != -1 && (max_depth < 1 || max_depth > kMaxDepth))
+        throw ParameterError(who + ": max_depth must be -1 (unlimited) or between 1 and " + std::to_string(kMaxDepth) +
+                             ", got " + std::to_string(max_depth));
+    if (rr_depth < 1 || rr_depth > kMaxDepth)
+        throw ParameterError(who + ": rr_depth must be between 1 and " + std::to_string(kMaxDepth) + ", got " +
+                             std::to_string(rr_depth));
+    return {int(max_depth), int(rr_depth)};
+}
+
 TiledIntegrator::TiledIntegrator() : buffers_(std::make_unique<Buffers>()) {}
 TiledIntegrator::~TiledIntegrator() = default;
 

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gdr/core/sampler.h"
@@ -117,6 +118,13 @@ protected:
     /// `max_batch` by default; throws ParameterError naming integrator `who`
     /// outside 1..max_batch.
     static int batch_param(const Params& p, const std::string& who, int max_batch);
+    /// Longest path a depth parameter may ask for (segments).
+    static constexpr long long kMaxDepth = 1 << 16;
+    /// Reads "max_depth" (-1 for unlimited, else 1 to kMaxDepth; default -1)
+    /// and "rr_depth" (1 to kMaxDepth; default 5) for integrator `who`, as
+    /// {max_depth, rr_depth}; throws a ParameterError naming the key otherwise
+    /// (a huge value must not wrap around when narrowed to int).
+    static std::pair<int, int> depth_params(const Params& p, const std::string& who);
     /// Turns accumulated slots into output layers; the default writes each slot
     /// as a layer of its name and its variance as "<name>_variance". Runs in
     /// the render's thread arena, so its parallel loops keep to its threads.
