@@ -26,9 +26,14 @@ namespace {
 class AmbientOcclusion final : public gdr::TiledIntegrator {
 public:
     explicit AmbientOcclusion(const gdr::Params& p)
-        : radius_param_(p.get_real("radius", -1.0)), rays_(int(p.get_int("rays", 1))) {
-        if (rays_ < 1) throw gdr::ParameterError("ao: rays must be >= 1");
-        if (radius_param_ == 0.0) throw gdr::ParameterError("ao: radius must be positive (or omitted)");
+        : radius_param_(p.get_real("radius", -1.0)) {
+        // Checked before narrowing to int: 4294967297 rays must not become 1.
+        const long long rays = p.get_int("rays", 1);
+        if (rays < 1 || rays > 1024) throw gdr::ParameterError("ao: rays must be between 1 and 1024");
+        rays_ = int(rays);
+        // -1 (the default) asks for a quarter of the scene's radius; NaN or 0 are errors, not that default.
+        if (!(radius_param_ > 0.0) && radius_param_ != -1.0)
+            throw gdr::ParameterError("ao: radius must be positive (or omitted)");
     }
 
     std::string describe() const override {
@@ -75,12 +80,12 @@ private:
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc < 3) {
+    if (!(argc == 3 || (argc == 5 && std::string(argv[3]) == "--spp"))) {
         std::fprintf(stderr, "usage: custom_integrator SCENE.json OUT.exr [--spp N]\n");
         return 2;
     }
     const std::string scene = argv[1], out = argv[2];
-    const std::string spp = argc >= 5 && std::string(argv[3]) == "--spp" ? argv[4] : "4";
+    const std::string spp = argc == 5 ? argv[4] : "4";
     try {
         // 1. Register: from now on "ao" is created by name like any built-in.
         gdr::integrator_registry().add("ao", "ambient occlusion (params: radius, rays)",
