@@ -16,15 +16,8 @@ namespace gdr::cli {
 
 namespace {
 
-// One input render and the sample range it holds.
-struct Part {
-    std::string file;
-    FrameBuffer fb;
-    uint64_t seed = 0, first = 0, spp = 0;
-};
-
 // The integrator that made a render, rebuilt from its stored name and parameters.
-std::unique_ptr<Integrator> integrator_of(const Part& p) {
+std::unique_ptr<Integrator> integrator_of(const StoredRender& p) {
     const auto& m = p.fb.metadata();
     Params params(p.file + " (integrator_params)");
     std::string lines = m.at("integrator_params");
@@ -52,17 +45,12 @@ int merge(const std::vector<std::string>& args) {
     if (out.empty()) throw ParameterError("merge: no output given (-o OUT.exr)");
     check_output_path(out);
 
-    std::vector<Part> parts;
+    std::vector<StoredRender> parts;
     for (const std::string& f : inputs) {
-        Part p{f, read_exr(f)};
-        for (const char* k : {"integrator", "integrator_params", "scene"})
-            if (!p.fb.metadata().count(k)) throw InputError(f + ": not a gdr render (no '" + std::string(k) + "' entry)");
-        if (p.fb.metadata().count("seed") && p.fb.metadata().at("seed") == kMixedSeeds)
-            throw InputError(f + ": already a merge of several seeds; merge its parts together with the new ones");
-        p.seed = metadata_count(p.fb, f, "seed");
-        p.first = metadata_count(p.fb, f, "first_sample");
-        p.spp = metadata_count(p.fb, f, "spp");
-        parts.push_back(std::move(p));
+        parts.push_back(read_stored_render(f));
+        // Parameters are compared between parts, so they must be recorded.
+        if (!parts.back().fb.metadata().count("integrator_params"))
+            throw InputError(f + ": not a gdr render (no 'integrator_params' entry)");
     }
     const auto& m0 = parts[0].fb.metadata();
     for (size_t i = 1; i < parts.size(); ++i) {
@@ -79,8 +67,8 @@ int merge(const std::vector<std::string>& args) {
     // the same samples, which would be counted twice.
     for (size_t i = 0; i < parts.size(); ++i)
         for (size_t j = i + 1; j < parts.size(); ++j) {
-            const Part &p = parts[i], &q = parts[j];
-            if (p.seed == q.seed && p.first < q.first + q.spp && q.first < p.first + p.spp)
+            const StoredRender &p = parts[i], &q = parts[j];
+            if (p.seed == q.seed && p.first_sample < q.first_sample + q.spp && q.first_sample < p.first_sample + p.spp)
                 throw InputError(p.file + " and " + q.file + " hold the same samples (seed " + std::to_string(p.seed) +
                                  "): merge renders with different seeds or --resume'd continuations");
         }
@@ -97,7 +85,7 @@ int merge(const std::vector<std::string>& args) {
             }
         }
         const auto& m = parts[i].fb.metadata();
-        seconds += metadata_seconds(parts[i].fb, parts[i].file);
+        seconds += parts[i].seconds;
         interrupted |= m.count("interrupted") && m.at("interrupted") == "true";
     }
     // An integrator registered by another program is unknown here; its
@@ -111,19 +99,21 @@ int merge(const std::vector<std::string>& args) {
     if (integrator) integrator->update_merged(merged);
 
     // One seed in one unbroken range of sample numbers is a render that --resume can continue.
-    std::vector<const Part*> order;
-    for (const Part& p : parts) order.push_back(&p);
-    std::sort(order.begin(), order.end(), [](const Part* x, const Part* y) { return x->first < y->first; });
+    std::vector<const StoredRender*> order;
+    for (const StoredRender& p : parts) order.push_back(&p);
+    std::sort(order.begin(), order.end(),
+              [](const StoredRender* x, const StoredRender* y) { return x->first_sample < y->first_sample; });
     bool one_sequence = true;
     for (size_t i = 1; i < order.size(); ++i)
-        one_sequence &= order[i]->seed == order[0]->seed && order[i]->first == order[i - 1]->first + order[i - 1]->spp;
+        one_sequence &= order[i]->seed == order[0]->seed &&
+                        order[i]->first_sample == order[i - 1]->first_sample + order[i - 1]->spp;
     auto& meta = merged.metadata();
     meta["seed"] = one_sequence ? std::to_string(order[0]->seed) : kMixedSeeds;
-    meta["first_sample"] = one_sequence ? std::to_string(order[0]->first) : kMixedSeeds;
+    meta["first_sample"] = one_sequence ? std::to_string(order[0]->first_sample) : kMixedSeeds;
     meta["render_seconds"] = fmt::format("{:.3f}", seconds);
     meta["interrupted"] = interrupted ? "true" : "false";
     std::string from;
-    for (const Part& p : parts) from += (from.empty() ? "" : ", ") + std::filesystem::absolute(p.file).string();
+    for (const StoredRender& p : parts) from += (from.empty() ? "" : ", ") + std::filesystem::absolute(p.file).string();
     meta["merged_from"] = from;
 
     const std::string preview = write_render(out, merged);

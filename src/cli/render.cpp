@@ -69,8 +69,7 @@ private:
     int last_decile_ = 0;
 };
 
-}  // namespace
-
+// The non-negative integer metadata entry `key` of a render read from `file`.
 uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key) {
     const auto it = fb.metadata().find(key);
     if (it == fb.metadata().end()) throw InputError(file + ": not a gdr render (no '" + key + "' entry)");
@@ -81,6 +80,37 @@ uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const st
     if (v.empty() || *end || v[0] == '-' || errno == ERANGE)
         throw InputError(file + ": metadata entry '" + key + "' is not a sample count or seed: '" + v + "'");
     return x;
+}
+
+// The render time recorded in a render read from `file` (s), 0 if none.
+double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
+    const auto it = fb.metadata().find("render_seconds");
+    if (it == fb.metadata().end()) return 0.0;
+    char* end = nullptr;
+    const double x = std::strtod(it->second.c_str(), &end);
+    if (it->second.empty() || *end || !(x >= 0.0))
+        throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
+    return x;
+}
+
+}  // namespace
+
+StoredRender read_stored_render(const std::string& file) {
+    StoredRender r{file, read_exr(file)};
+    const auto& m = r.fb.metadata();
+    for (const char* k : {"integrator", "scene"})
+        if (!m.count(k)) throw InputError(file + ": not a gdr render (no '" + std::string(k) + "' entry)");
+    if (m.count("seed") && m.at("seed") == kMixedSeeds)
+        throw InputError(file + ": merged from renders with different seeds, so it holds no single sample sequence to "
+                         "continue or to merge again; render more with a new seed and merge the parts (gdr merge)");
+    r.seed = metadata_count(r.fb, file, "seed");
+    r.first_sample = metadata_count(r.fb, file, "first_sample");
+    r.spp = metadata_count(r.fb, file, "spp");
+    constexpr uint64_t kMaxSamples = uint64_t(std::numeric_limits<long long>::max());
+    if (r.first_sample > kMaxSamples || r.spp > kMaxSamples - r.first_sample)
+        throw InputError(file + ": sample counts in the metadata are out of range");
+    r.seconds = metadata_seconds(r.fb, file);
+    return r;
 }
 
 void check_output_path(const std::string& path) {
@@ -94,16 +124,6 @@ void check_output_path(const std::string& path) {
     if (!fs::is_directory(dir, ec)) throw InputError("cannot write '" + path + "': no directory '" + dir.string() + "'");
     if (access(dir.c_str(), W_OK) != 0)
         throw InputError("cannot write '" + path + "': directory '" + dir.string() + "' is not writable");
-}
-
-double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
-    const auto it = fb.metadata().find("render_seconds");
-    if (it == fb.metadata().end()) return 0.0;
-    char* end = nullptr;
-    const double x = std::strtod(it->second.c_str(), &end);
-    if (it->second.empty() || *end || !(x >= 0.0))
-        throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
-    return x;
 }
 
 std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure) {
@@ -168,19 +188,9 @@ int render(const std::vector<std::string>& args) {
 
     // Resuming continues the previous render's sample sequence, so the merged
     // image equals one longer render.
-    FrameBuffer previous;
-    double previous_seconds = 0.0;
-    if (!resume_path.empty()) {
-        previous = read_exr(resume_path);
-        const auto& m = previous.metadata();
-        for (const char* k : {"spp", "seed", "first_sample", "integrator", "scene"})
-            if (!m.count(k)) throw InputError(resume_path + ": not a gdr render (no '" + std::string(k) + "' entry)");
-        if (m.at("seed") == kMixedSeeds)
-            throw InputError(resume_path + ": merged from renders with different seeds, so it has no sample "
-                             "sequence to continue; render more with a new seed and merge (gdr merge)");
-        // Checked before rendering, so that a bad entry cannot cost the new samples.
-        previous_seconds = metadata_seconds(previous, resume_path);
-    }
+    // Read and checked before rendering, so that a bad entry cannot cost the new samples.
+    StoredRender previous;
+    if (!resume_path.empty()) previous = read_stored_render(resume_path);
 
     const auto t_load = std::chrono::steady_clock::now();
     SceneFile sf = load_scene_file(scene_path);
@@ -202,21 +212,15 @@ int render(const std::vector<std::string>& args) {
     st.seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
     st.cancel = &g_interrupted;
     if (!resume_path.empty()) {
-        const auto& m = previous.metadata();
+        const auto& m = previous.fb.metadata();
         if (m.at("integrator") != name)
             throw InputError(resume_path + ": rendered with integrator '" + m.at("integrator") + "', not '" + name + "'");
         if (m.count("integrator_params") && m.at("integrator_params") != integrator->describe())
             throw InputError(resume_path + ": rendered with other integrator parameters:\n" + m.at("integrator_params"));
-        const uint64_t previous_seed = metadata_count(previous, resume_path, "seed");
-        if (seed >= 0 && uint64_t(seed) != previous_seed)
+        if (seed >= 0 && uint64_t(seed) != previous.seed)
             throw InputError(resume_path + ": rendered with seed " + m.at("seed") + ", not " + std::to_string(seed));
-        st.seed = previous_seed;
-        const uint64_t first = metadata_count(previous, resume_path, "first_sample");
-        const uint64_t done = metadata_count(previous, resume_path, "spp");
-        constexpr uint64_t kMaxSamples = uint64_t(std::numeric_limits<long long>::max());
-        if (first > kMaxSamples || done > kMaxSamples - first)
-            throw InputError(resume_path + ": sample counts in the metadata are out of range");
-        st.first_sample = (long long)(first + done);
+        st.seed = previous.seed;
+        st.first_sample = (long long)(previous.first_sample + previous.spp);
     }
 
     const auto& cam = sf.scene->camera();
@@ -244,12 +248,12 @@ int render(const std::vector<std::string>& args) {
     meta["gdr_version"] = "0.1.0";
     meta["interrupted"] = g_interrupted ? "true" : "false";
     if (!resume_path.empty()) {
-        merge_renders(previous, fb);
-        integrator->update_merged(previous);
+        merge_renders(previous.fb, fb);
+        integrator->update_merged(previous.fb);
         // The merged image is as complete as its last part.
-        previous.metadata()["interrupted"] = meta["interrupted"];
-        previous.metadata()["render_seconds"] = fmt::format("{:.3f}", previous_seconds + rs.seconds);
-        fb = std::move(previous);
+        previous.fb.metadata()["interrupted"] = meta["interrupted"];
+        previous.fb.metadata()["render_seconds"] = fmt::format("{:.3f}", previous.seconds + rs.seconds);
+        fb = std::move(previous.fb);
     }
     const std::string preview = write_render(out_path, fb, float(exposure));
 

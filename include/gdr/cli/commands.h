@@ -27,13 +27,21 @@ inline const std::string kMixedSeeds = "mixed";
 /// checked before rendering, so that a typing error costs no render time.
 void check_output_path(const std::string& path);
 
-/// The non-negative integer metadata entry `key` of a render read from `file`
-/// (throws an InputError naming both if it is missing or malformed).
-uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key);
+/// A render written by `gdr render` or `gdr merge`, read back with the
+/// sample range it holds (what --resume continues and merge pools).
+struct StoredRender {
+    std::string file;           ///< Where it was read from.
+    FrameBuffer fb;             ///< Its layers and metadata.
+    uint64_t seed = 0;          ///< Sampler seed of its samples.
+    uint64_t first_sample = 0;  ///< Number of its first sample in each pixel.
+    uint64_t spp = 0;           ///< Samples per pixel it holds.
+    double seconds = 0.0;       ///< Render time recorded in it (s), 0 if none.
+};
 
-/// The "render_seconds" metadata of a render read from `file`, 0 if it has
-/// none (throws an InputError naming both if it is malformed).
-double metadata_seconds(const FrameBuffer& fb, const std::string& file);
+/// Reads `file` with its metadata; throws an InputError naming the file if
+/// an entry every render has is missing or malformed, or if it is a merge of
+/// several seeds, which holds no single sample range.
+StoredRender read_stored_render(const std::string& file);
 
 /// Writes `fb` to `out` (write_exr_or_rescue) and a PNG preview beside it
 /// (OUT.png): the L1 reconstruction of a gradient-domain render, else its
