@@ -427,7 +427,10 @@ TEST_CASE("camera packets of several samples give what one packet per sample giv
             film[j] = Vec2(float(px), float(py)) + s.next2d();
             for (int d = 0; d < 4; ++d) active[j][d] = (j + d) % 3 != 0;  // some lanes idle
         }
-        trace_camera_packets(*scene, n, film, base, steps, active, out, packet);
+        const bool* act[n];
+        OffsetPath* outs[n];
+        for (int j = 0; j < n; ++j) act[j] = active[j], outs[j] = out[j];
+        trace_camera_packets(*scene, n, film, base, steps, act, outs, packet);
         for (int j = 0; j < n; ++j) trace_camera_packet(*scene, film[j], base1[j], steps, active[j], out1[j], packet1[j]);
         for (int j = 0; j < n; ++j)
             for (int l = 0; l < 5; ++l) {

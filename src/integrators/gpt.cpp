@@ -308,7 +308,10 @@ protected:
             }
         }
         // The jobs' camera rays and their offsets' as full packets.
-        trace_camera_packets(scene, n, film, scratch.path, step, scratch.inside, scratch.offsets, scratch.packet);
+        const bool* inside[kMaxBatch];
+        OffsetPath* offsets[kMaxBatch];
+        for (int j = 0; j < n; ++j) inside[j] = scratch.inside[j], offsets[j] = scratch.offsets[j];
+        trace_camera_packets(scene, n, film, scratch.path, step, inside, offsets, scratch.packet);
         for (int j = 0; j < n; ++j)
             continue_camera_path(scene, jobs[j].sampler, trace_, scratch.path[j], scratch.packet[j].rays[0],
                                  scratch.packet[j].hit[0]);

@@ -239,20 +239,12 @@ void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConf
 
 void trace_camera_packet(const Scene& scene, const Vec2& film, CameraPath& base, const Vec2 pixel_offsets[4],
                          const bool active[4], OffsetPath out[4], CameraPacket& packet) {
-    SurfaceInteraction* si[8] = {};
-    for (int i = 0; i < 8; ++i) packet.traced[i] = false;
-    si[0] = begin_camera_path(scene, film, base, packet.rays[0]);
-    packet.traced[0] = true;
-    for (int i = 0; i < 4; ++i) {
-        reset(out[i]);
-        packet.traced[1 + i] = active[i];
-        if (active[i]) si[1 + i] = start_offset(scene, film, pixel_offsets[i], out[i], packet.rays[1 + i]);
-    }
-    scene.intersect8(packet.rays, packet.traced, si, packet.hit);
+    // A batch of one: its five rays share one packet.
+    trace_camera_packets(scene, 1, &film, &base, pixel_offsets, &active, &out, &packet);
 }
 
 void trace_camera_packets(const Scene& scene, int n, const Vec2* film, CameraPath* base, const Vec2 pixel_offsets[4],
-                          const bool (*active)[4], OffsetPath (*out)[4], CameraPacket* packet) {
+                          const bool* const* active, OffsetPath* const* out, CameraPacket* packet) {
     // Lane l of every sample's packet, then lane l + 1: the samples of a batch
     // are mostly of one pixel, so each group (all bases, all +x offsets, ...)
     // is as coherent as camera rays get.

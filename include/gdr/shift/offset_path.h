@@ -75,11 +75,12 @@ void trace_camera_packet(const Scene& scene, const Vec2& film, CameraPath& base,
 constexpr int kMaxCameraBatch = 16;
 
 /// trace_camera_packet() of n <= kMaxCameraBatch samples (sample j: film[j],
-/// base[j], active[j], out[j], packet[j]), their camera rays traced as full
+/// base[j], the four flags active[j], the four offsets out[j], packet[j]),
+/// their camera rays traced as full
 /// packets of eight grouped by lane (all bases, then each offset direction):
 /// five packets for eight samples instead of eight. Gives what n calls give.
 void trace_camera_packets(const Scene& scene, int n, const Vec2* film, CameraPath* base, const Vec2 pixel_offsets[4],
-                          const bool (*active)[4], OffsetPath (*out)[4], CameraPacket* packet);
+                          const bool* const* active, OffsetPath* const* out, CameraPacket* packet);
 
 /// The last stage of trace_and_shift_camera_paths4(), after
 /// continue_camera_path() of the base from packet lane 0: walks the offsets
