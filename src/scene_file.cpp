@@ -217,31 +217,24 @@ void check_material_lines(const std::string& lib) {
     }
 }
 
-// The material libraries an OBJ names (mtllib lines), relative to its directory.
-std::vector<std::string> material_libraries(const std::string& obj) {
-    std::vector<std::string> libs;
-    std::ifstream in(obj, std::ios::binary);
-    std::string line;
-    while (std::getline(in, line)) {
-        std::istringstream words(line);
-        std::string key, name;
-        words >> key;
-        if (key != "mtllib") continue;
-        while (words >> name) libs.push_back((fs::path(obj).parent_path() / name).string());
-    }
-    return libs;
-}
-
 // tinyobjloader reads a coordinate it cannot parse ("nan", "1,5", "x") as 0,
 // which would silently move a vertex or tilt a normal; so the vertex,
-// normal and texture-coordinate lines are checked first.
-void check_vertex_lines(const std::string& path) {
+// normal and texture-coordinate lines are checked first. Returns the material
+// libraries the OBJ names (mtllib lines, relative to its directory), collected
+// in the same pass, for check_material_lines().
+std::vector<std::string> check_vertex_lines(const std::string& path) {
+    std::vector<std::string> libraries;
     std::ifstream in(path, std::ios::binary);
-    if (!in) return;  // the reader reports unreadable files
+    if (!in) return libraries;  // the reader reports unreadable files
     std::string line;
     size_t line_no = 0;
     while (std::getline(in, line)) {
         ++line_no;
+        if (line.rfind("mtllib", 0) == 0 && line.size() > 6 && (line[6] == ' ' || line[6] == '\t')) {
+            std::istringstream words(line.substr(6));
+            for (std::string name; words >> name;) libraries.push_back((fs::path(path).parent_path() / name).string());
+            continue;
+        }
         // v x y z [colour], vn x y z, vt u [v [w]]: how many numbers are checked, and how many are required.
         int start, count, required;
         const char* kind;   // what the line describes
@@ -273,6 +266,7 @@ void check_vertex_lines(const std::string& path) {
                                  "' is not a finite number");
         }
     }
+    return libraries;
 }
 
 // Why `file` cannot be read as a file (": file not found", ": not a file"), or "" if it can.
@@ -288,7 +282,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
                    std::set<std::string>* used_overrides, const std::string& mtl = "") {
     if (const std::string why = not_a_file(path); !why.empty()) throw InputError(path + why);
-    check_vertex_lines(path);
+    const std::vector<std::string> libraries = check_vertex_lines(path);
     tinyobj::ObjReaderConfig cfg;
     cfg.triangulate = true;
     cfg.vertex_color = false;
@@ -302,7 +296,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     };
     if (const std::string why = mtl.empty() ? "" : not_a_file(mtl); !why.empty())
         throw InputError(scene_file + ": meshes[].mtl: " + mtl + why);
-    for (const std::string& lib : mtl.empty() ? material_libraries(path) : std::vector<std::string>{mtl})
+    for (const std::string& lib : mtl.empty() ? libraries : std::vector<std::string>{mtl})
         check_material_lines(lib);
     // With a library of its own the OBJ is parsed from memory: tinyobjloader
     // then reads every `mtllib` from the given text instead of a file.
