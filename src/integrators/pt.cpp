@@ -6,6 +6,7 @@
 #include "gdr/integrators/path_dims.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
+#include "pt_lambertian.h"
 
 namespace gdr {
 
@@ -23,11 +24,12 @@ public:
         std::tie(max_depth_, rr_depth_) = depth_params(p, "pt");
         nee_ = p.get_bool("nee", true);
         batch_ = batch_param(p, "pt", kPacket);
+        simd_ = p.get_bool("simd", true);
     }
 
     std::string describe() const override {
         return "max_depth=" + std::to_string(max_depth_) + "\nrr_depth=" + std::to_string(rr_depth_) +
-               "\nnee=" + (nee_ ? "true" : "false") + "\n";
+               "\nnee=" + (nee_ ? "true" : "false") + "\nsimd=" + (simd_ ? "true" : "false") + "\n";
     }
 
 protected:
@@ -55,6 +57,8 @@ protected:
         SurfaceInteraction* const sip[kPacket] = {si, si + 1, si + 2, si + 3, si + 4, si + 5, si + 6, si + 7};
         bool active[kPacket], hit[kPacket];
         const PathOptions opt{max_depth_, rr_depth_, nee_};
+        static_assert(detail::kLambertianLanes == kPacket);
+        const bool lambertian = simd_ && nee_ && scene.all_lambertian() && scene.has_lights();
         for (int base = 0; base < n; base += kPacket) {
             const int m = std::min(kPacket, n - base);
             for (int j = 0; j < kPacket; ++j) {
@@ -74,8 +78,17 @@ protected:
                     scene.prefetch_light_table(sampler.at(dims::vertex(1) + dims::kLightSelect));
             }
             scene.intersect8(ray, active, sip, hit);
+            PathResult results[kPacket];
+            if (lambertian) {
+                Sampler* samplers[kPacket];
+                for (int j = 0; j < m; ++j) samplers[j] = &jobs[base + j].sampler;
+                detail::trace_lambertian_paths(scene, ray, si, hit, samplers, m, opt, results);
+            } else {
+                for (int j = 0; j < m; ++j)
+                    results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
+            }
             for (int j = 0; j < m; ++j) {
-                const PathResult r = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
+                const PathResult& r = results[j];
                 rays += r.rays;
                 float* o = out + size_t(base + j) * stride;
                 o[0] = r.radiance.r, o[1] = r.radiance.g, o[2] = r.radiance.b;
@@ -98,6 +111,7 @@ protected:
 private:
     int max_depth_ = -1, rr_depth_ = 5;
     bool nee_ = true;
+    bool simd_ = true;  // the vectorised kernel where the scene allows it; false: always the scalar one
     int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 

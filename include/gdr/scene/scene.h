@@ -25,6 +25,8 @@ struct Material {
     bool pure_delta = false;      ///< See min_roughness.
     bool wo_side_only = false;    ///< bsdf->wo_side_only(), likewise.
     bool black = false;           ///< bsdf->is_black(), likewise.
+    bool lambertian = false;      ///< bsdf->constant_lambertian(lambertian_f), likewise.
+    Color lambertian_f{0.f};      ///< f of an untextured Lambertian BSDF (1/sr); see lambertian.
 };
 
 /// A triangle soup ready for the BVH: three corners per triangle.
@@ -160,6 +162,9 @@ public:
     /// table exceed what stays in the first-level cache. With a few emitters
     /// the prefetches only cost instructions.
     bool light_prefetch_pays() const { return light_prefetch_pays_; }
+    /// True if every material is an untextured Lambertian reflector
+    /// (Material::lambertian): a path tracer may then shade without BSDF calls.
+    bool all_lambertian() const { return all_lambertian_; }
 
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
@@ -238,6 +243,7 @@ private:
     std::vector<Frame> flat_frames_;        // per triangle: its face frame, or empty (a big scene)
     std::vector<Emitter> emitters_;         // emitting triangles and the alias table over them, for sample_light()
     bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
+    bool all_lambertian_ = false;           // see all_lambertian()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;
