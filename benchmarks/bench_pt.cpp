@@ -13,7 +13,10 @@
 // in process CPU time (user + system, all threads), which other programs do
 // not inflate; that is the figure to quote when the machine is busy.
 //
-//   bench_pt [--spp N] [--repeats R] [--threads T] [SCENE.json ...]
+//   bench_pt [--spp N] [--repeats R] [--threads T] [--set key=value]... [SCENE.json ...]
+//
+// --set passes a parameter to the integrator (e.g. simd=false, to time pt's
+// scalar kernel).
 //
 // Without scenes it runs scenes/cornell-box/scene.json and scenes/veach-mis/scene.json.
 #include <algorithm>
@@ -113,7 +116,8 @@ double replay(RTCScene scene, const std::vector<RecordedRay>& rays, long long pa
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-bool bench_scene(const std::string& path, long long spp, int repeats, int threads) {
+bool bench_scene(const std::string& path, long long spp, int repeats, int threads,
+                 const std::vector<std::string>& sets) {
     gdr::SceneFile sf = gdr::load_scene_file(path);
     gdr::Scene& scene = *sf.scene;
     const auto& cam = scene.camera();
@@ -122,7 +126,11 @@ bool bench_scene(const std::string& path, long long spp, int repeats, int thread
                threads > 0 ? threads : tbb::this_task_arena::max_concurrency());
 
     gdr::Params params = sf.defaults.params;
+    for (const auto& kv : sets) params.set_from_text(kv);
     auto pt = gdr::integrator_registry().create(sf.defaults.integrator, params);
+    std::string settings = pt->describe();
+    std::replace(settings.begin(), settings.end(), '\n', ' ');
+    fmt::print("  {}: {}\n", sf.defaults.integrator, settings);
 
     // Record the ray distribution of one sample per pixel.
     Recorder rec;
@@ -195,7 +203,7 @@ bool bench_scene(const std::string& path, long long spp, int repeats, int thread
 int main(int argc, char** argv) {
     long long spp = 4;
     int repeats = 5, threads = 0;
-    std::vector<std::string> scenes;
+    std::vector<std::string> scenes, sets;
     try {
         for (int i = 1; i < argc; ++i) {
             const std::string a = argv[i];
@@ -206,8 +214,9 @@ int main(int argc, char** argv) {
             if (a == "--spp") spp = gdr::cli::ArgReader::parse_int(a, value(), 1, 1LL << 32);
             else if (a == "--repeats") repeats = int(gdr::cli::ArgReader::parse_int(a, value(), 1, 10000));
             else if (a == "--threads") threads = int(gdr::cli::ArgReader::parse_int(a, value(), 0, 1 << 16));
+            else if (a == "--set") sets.push_back(value());
             else if (a == "-h" || a == "--help") {
-                fmt::print("usage: bench_pt [--spp N] [--repeats R] [--threads T] [SCENE.json ...]\n");
+                fmt::print("usage: bench_pt [--spp N] [--repeats R] [--threads T] [--set key=value]... [SCENE.json ...]\n");
                 return 0;
             } else if (!a.empty() && a[0] == '-') throw gdr::ParameterError("unknown option '" + a + "'");
             else scenes.push_back(a);
@@ -217,7 +226,7 @@ int main(int argc, char** argv) {
             scenes = {std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/scene.json",
                       std::string(GDR_SOURCE_DIR) + "/scenes/veach-mis/scene.json"};
         bool ok = true;
-        for (const auto& s : scenes) ok &= bench_scene(s, spp, repeats, threads);
+        for (const auto& s : scenes) ok &= bench_scene(s, spp, repeats, threads, sets);
         return ok ? 0 : 3;
     } catch (const std::exception& e) {
         fmt::print(stderr, "bench_pt: error: {}\n", e.what());

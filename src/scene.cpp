@@ -28,7 +28,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         mat.black = mat.bsdf->is_black();
         mat.lambertian = mat.bsdf->constant_lambertian(mat.lambertian_f);
     }
-    all_lambertian_ = std::all_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.lambertian; });
+    any_lambertian_ = std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.lambertian; });
     // Inconsistent arrays (a caller building the mesh itself) would be read out of bounds.
     const auto sizes = [&] {
         return " (" + std::to_string(mesh.positions.size()) + " positions, " + std::to_string(mesh.normals.size()) +

@@ -6,9 +6,10 @@
 #include "gdr/integrators/path_dims.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
-#include "pt_lambertian.h"
+#include "pt_lockstep.h"
 
 namespace gdr {
+
 
 namespace {
 
@@ -57,8 +58,8 @@ protected:
         SurfaceInteraction* const sip[kPacket] = {si, si + 1, si + 2, si + 3, si + 4, si + 5, si + 6, si + 7};
         bool active[kPacket], hit[kPacket];
         const PathOptions opt{max_depth_, rr_depth_, nee_};
-        static_assert(detail::kLambertianLanes == kPacket);
-        const bool lambertian = simd_ && nee_ && scene.all_lambertian() && scene.has_lights();
+        static_assert(detail::kLockstepLanes == kPacket);
+        const bool lockstep = simd_ && nee_ && scene.any_lambertian() && scene.has_lights();
         for (int base = 0; base < n; base += kPacket) {
             const int m = std::min(kPacket, n - base);
             for (int j = 0; j < kPacket; ++j) {
@@ -79,10 +80,10 @@ protected:
             }
             scene.intersect8(ray, active, sip, hit);
             PathResult results[kPacket];
-            if (lambertian) {
+            if (lockstep) {
                 Sampler* samplers[kPacket];
                 for (int j = 0; j < m; ++j) samplers[j] = &jobs[base + j].sampler;
-                detail::trace_lambertian_paths(scene, ray, si, hit, samplers, m, opt, results);
+                detail::trace_lockstep_paths(scene, ray, si, hit, samplers, m, opt, results);
             } else {
                 for (int j = 0; j < m; ++j)
                     results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
@@ -111,7 +112,7 @@ protected:
 private:
     int max_depth_ = -1, rr_depth_ = 5;
     bool nee_ = true;
-    bool simd_ = true;  // the vectorised kernel where the scene allows it; false: always the scalar one
+    bool simd_ = true;  // the lockstep kernel where it pays; false: always the scalar one
     int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 
@@ -120,10 +121,7 @@ private:
 PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,
                            const SurfaceInteraction* first, bool first_hit) {
     PathResult r;
-    Color beta(1.f);
-    bool prev_delta = true;  // camera rays see emitters without MIS
-    float prev_pdf_w = 0.f;
-    bool aux_done = false;
+    detail::PathState st;
     Vec2 u_sel_next(0.f);  // the next vertex's emitter and lobe numbers
     for (int depth = 1;; ++depth) {
         SurfaceInteraction traced;
@@ -133,13 +131,11 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
         // next vertex's alias-table bucket).
         // The emitter and lobe numbers are one pair (one hash): both are drawn a vertex ahead.
         const Vec2 u_sel = depth == 1 ? sampler.at2(dims::vertex(depth) + dims::kLightSelect) : u_sel_next;
-        const float u_light = u_sel.x, u_lobe = u_sel.y;
         static_assert(dims::kBsdfLobe == dims::kLightSelect + 1);
         u_sel_next = sampler.at2(dims::vertex(depth + 1) + dims::kLightSelect);
-        const float u_light_next = u_sel_next.x;
         if (opt.nee && scene.light_prefetch_pays()) {
-            scene.prefetch_light(u_light);
-            scene.prefetch_light_table(u_light_next);
+            scene.prefetch_light(u_sel.x);
+            scene.prefetch_light_table(u_sel_next.x);
         }
         if (depth == 1 && first) {
             if (!first_hit) break;
@@ -149,72 +145,9 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
         const SurfaceInteraction& si = depth == 1 && first ? *first : traced;
         if (depth == 1) r.depth = si.t;
         const Vec3 wo_world = -ray.d;
-
-        if (si.is_emitter()) {
-            const Color le = si.emitted(wo_world);
-            if (!is_black(le)) {
-                float w = 1.f;
-                if (opt.nee && !prev_delta) {
-                    const float cos_l = glm::dot(si.ng, wo_world);
-                    w = power_heuristic(prev_pdf_w, pdf_area_to_solid_angle(scene.light_pdf_a(si.prim), si.t, cos_l));
-                }
-                r.radiance += beta * le * w;
-            }
-        }
+        detail::add_emission(scene, si, wo_world, st, opt, r);
         if (opt.max_depth > 0 && depth >= opt.max_depth) break;
-
-        const Bsdf& bsdf = *si.material->bsdf;
-        const Vec3 wo = si.frame.to_local(wo_world);
-        const bool pure_delta = si.material->pure_delta;
-        if (!aux_done && !pure_delta) {
-            r.albedo = bsdf.albedo(si.uv);
-            r.normal = si.frame.n;
-            aux_done = true;
-        }
-        // A black surface (an emitter with Kd 0) adds nothing by a light
-        // sample and scatters nothing: its light sample would only cost a
-        // cache miss on a large emitter table.
-        if (si.material->black) break;
-        // Numbers are drawn by address, only when needed: the vertex block's
-        // layout (path_dims.h) is the same whether or not a strategy runs.
-        const uint32_t block = dims::vertex(depth);
-        sampler.set_dimension(block + dims::kPerVertex);  // past this vertex's block, as trace_camera_path leaves it
-
-        // The continuation is sampled before the light: the two are independent,
-        // so their dependency chains (hash, warp, division) overlap instead of
-        // the BSDF's running alone between the shadow ray and the next cast.
-        const auto bs = bsdf.sample(wo, si.uv, u_lobe, sampler.at2(block + dims::kBsdfDir));
-        if (opt.nee && !pure_delta && scene.has_lights()) {
-            const LightSample ls = scene.sample_light(si.p, u_light, sampler.at2(block + dims::kLightPoint));
-            const Vec3 d = ls.p - si.p;
-            const float dist2 = glm::dot(d, d);
-            if (!is_black(ls.radiance) && dist2 > 0.f) {
-                const float dist = std::sqrt(dist2);
-                const Vec3 wi_world = d / dist;
-                const Vec3 wi = si.frame.to_local(wi_world);
-                const BsdfEval fe = bsdf.eval_pdf(wo, wi, si.uv);
-                if (!is_black(fe.f)) {
-                    ++r.rays;
-                    if (scene.visible(si.p, si.ng, ls.p, ls.n)) {
-                        const float pdf_l = pdf_area_to_solid_angle(ls.pdf_a, dist, glm::dot(ls.n, -wi_world));
-                        const float w = power_heuristic(pdf_l, fe.pdf);
-                        r.radiance += beta * fe.f * abs_cos_theta(wi) * ls.radiance * (w / pdf_l);
-                    }
-                }
-            }
-        }
-
-        if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) break;
-        beta *= bs->f * (abs_cos_theta(bs->wi) / bs->pdf);
-        prev_delta = bs->is_delta();
-        prev_pdf_w = bs->pdf;
-        ray = spawn_ray(si, si.frame.to_world(bs->wi));
-
-        if (depth >= opt.rr_depth) {
-            const float q = roulette_survival(beta);
-            if (sampler.at(block + dims::kRoulette) >= q) break;
-            beta /= q;
-        }
+        if (!detail::scatter(scene, si, wo_world, sampler, opt, depth, u_sel, st, r, ray)) break;
     }
     return r;
 }

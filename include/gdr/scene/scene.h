@@ -162,9 +162,10 @@ public:
     /// table exceed what stays in the first-level cache. With a few emitters
     /// the prefetches only cost instructions.
     bool light_prefetch_pays() const { return light_prefetch_pays_; }
-    /// True if every material is an untextured Lambertian reflector
-    /// (Material::lambertian): a path tracer may then shade without BSDF calls.
-    bool all_lambertian() const { return all_lambertian_; }
+    /// True if some material is an untextured Lambertian reflector
+    /// (Material::lambertian): a path tracer's vectorised shading of such
+    /// vertices then pays.
+    bool any_lambertian() const { return any_lambertian_; }
 
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
@@ -243,7 +244,7 @@ private:
     std::vector<Frame> flat_frames_;        // per triangle: its face frame, or empty (a big scene)
     std::vector<Emitter> emitters_;         // emitting triangles and the alias table over them, for sample_light()
     bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
-    bool all_lambertian_ = false;           // see all_lambertian()
+    bool any_lambertian_ = false;           // see any_lambertian()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;

@@ -1,11 +1,12 @@
-// Lockstep path tracing over untextured Lambertian surfaces. Each vertex has
-// three stages: (A) per path, the ray cast, emission and the light sample,
-// gathered into structure-of-arrays lanes; (B) per four paths, the shading
+// Lockstep path tracing. Each vertex has three stages: (A) per path, the ray
+// cast, emission, and either the scalar scattering step (a vertex that is not
+// an untextured Lambertian) or the light sample, gathered into
+// structure-of-arrays lanes; (B) per four paths, the Lambertian shading
 // arithmetic in vector registers; (C) per path, the shadow ray, roulette and
-// the paths that end leaving the lanes. Stage B repeats trace_path()'s
+// the paths that end leaving the lanes. Stage B repeats scatter()'s
 // operations in its order, so images are bit-identical to the scalar kernel
 // (the vectorised select, square root and division round as the scalar ones).
-#include "pt_lambertian.h"
+#include "pt_lockstep.h"
 
 #include <cstring>
 
@@ -35,7 +36,7 @@ inline void store(int32_t* p, i4 v) { std::memcpy(p, &v, sizeof v); }
 inline f4 abs4(f4 x) { return (f4)((i4)x & 0x7fffffff); }
 inline f4 sqrt4(f4 x) { return (f4)_mm_sqrt_ps((__m128)x); }
 
-constexpr int N = kLambertianLanes;
+constexpr int N = kLockstepLanes;
 static_assert(N % 4 == 0);
 
 // The lanes: slots [0, live) hold the paths still running, in no order.
@@ -43,7 +44,10 @@ struct Lanes {
     // The ray to the next vertex, the throughput (unitless RGB) and the pdf
     // (1/sr) of the direction that ray was sampled with.
     alignas(16) float o[3][N], d[3][N], beta[3][N], prev_pdf[N];
-    int path[N];  // index into the caller's arrays
+    bool prev_delta[N], aux_done[N];  // as PathState's
+    float u_light[N], u_lobe[N];      // the next vertex's emitter and lobe numbers, drawn a vertex ahead
+    int path[N];                      // index into the caller's arrays
+    bool scattered[N];                // the scalar step ran at this vertex, and the path goes on
     // Stage A's gathering: the vertex (position, geometric normal, shading
     // frame, f in 1/sr, direction numbers) and its light sample (point,
     // normal, radiance, area pdf in 1/m^2).
@@ -141,8 +145,8 @@ inline void shade4(Lanes& L, int g) {
 
 }  // namespace
 
-void trace_lambertian_paths(const Scene& scene, const Ray* rays, SurfaceInteraction* si, const bool* hit,
-                            Sampler* const* samplers, int m, const PathOptions& opt, PathResult* results) {
+void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteraction* si, const bool* hit,
+                          Sampler* const* samplers, int m, const PathOptions& opt, PathResult* results) {
     // Slots past `live` are shaded too (four at a time) and ignored: they
     // start as zeros, and later hold an ended path's finite numbers, so
     // that no lane computes with denormals.
@@ -152,53 +156,60 @@ void trace_lambertian_paths(const Scene& scene, const Ray* rays, SurfaceInteract
     for (int i = 0; i < m; ++i) {
         results[i] = PathResult();
         L.path[i] = i;
-        for (int c = 0; c < 3; ++c) L.o[c][i] = rays[i].o[c], L.d[c][i] = rays[i].d[c], L.beta[c][i] = 1.f;
+        const PathState st;
+        for (int c = 0; c < 3; ++c) L.o[c][i] = rays[i].o[c], L.d[c][i] = rays[i].d[c], L.beta[c][i] = st.beta[c];
+        L.prev_pdf[i] = st.prev_pdf_w, L.prev_delta[i] = st.prev_delta, L.aux_done[i] = st.aux_done;
+        const Vec2 u_sel = samplers[i]->at2(dims::vertex(1) + dims::kLightSelect);
+        L.u_light[i] = u_sel.x, L.u_lobe[i] = u_sel.y;
     }
-    const bool prefetch = scene.light_prefetch_pays();
+    // Light-sample prefetching (Scene::prefetch_light_table) in two stages,
+    // each for all paths at once so that their cache misses overlap: the
+    // alias-table bucket when a path's emitter number is drawn (stage C), the
+    // emitter before the rays are cast (stage A).
+    const bool prefetch = opt.nee && scene.light_prefetch_pays();
 
     for (int depth = 1; live > 0; ++depth) {
         const uint32_t block = dims::vertex(depth);
         // Stage A.
+        if (prefetch)
+            for (int s = 0; s < live; ++s) scene.prefetch_light(L.u_light[s]);
         for (int s = 0; s < live; ++s) {
             PathResult& res = results[L.path[s]];
-            const Sampler& sampler = *samplers[L.path[s]];
-            const Vec2 u_sel = sampler.at2(block + dims::kLightSelect);
-            if (prefetch) {
-                scene.prefetch_light(u_sel.x);
-                scene.prefetch_light_table(sampler.at(dims::vertex(depth + 1) + dims::kLightSelect));
-            }
+            Sampler& sampler = *samplers[L.path[s]];
+            const Vec2 u_sel(L.u_light[s], L.u_lobe[s]);
             L.shade[s] = 0;
+            L.scattered[s] = false;
             ++res.rays;
-            const Ray ray{Vec3(L.o[0][s], L.o[1][s], L.o[2][s]), Vec3(L.d[0][s], L.d[1][s], L.d[2][s]), 0.f, kInf};
+            Ray ray{Vec3(L.o[0][s], L.o[1][s], L.o[2][s]), Vec3(L.d[0][s], L.d[1][s], L.d[2][s]), 0.f, kInf};
             SurfaceInteraction& h = si[s];
             if (depth == 1 ? !hit[s] : !scene.intersect(ray, h)) continue;
             if (depth == 1) res.depth = h.t;
             const Vec3 wo_world = -ray.d;
-            if (h.is_emitter()) {
-                const Color le = h.emitted(wo_world);
-                if (!is_black(le)) {
-                    float w = 1.f;  // camera rays see emitters without MIS
-                    if (depth > 1) {
-                        const float cos_l = glm::dot(h.ng, wo_world);
-                        w = power_heuristic(L.prev_pdf[s],
-                                            pdf_area_to_solid_angle(scene.light_pdf_a(h.prim), h.t, cos_l));
-                    }
-                    res.radiance += Color(L.beta[0][s], L.beta[1][s], L.beta[2][s]) * le * w;
-                }
-            }
+            PathState st{Color(L.beta[0][s], L.beta[1][s], L.beta[2][s]), L.prev_delta[s], L.prev_pdf[s],
+                         L.aux_done[s]};
+            add_emission(scene, h, wo_world, st, opt, res);
             if (opt.max_depth > 0 && depth >= opt.max_depth) continue;
-            if (depth == 1) {
-                res.albedo = h.material->bsdf->albedo(h.uv);
-                res.normal = h.frame.n;
+            const Material& mat = *h.material;
+            if (!mat.lambertian) {
+                if (!scatter(scene, h, wo_world, sampler, opt, depth, u_sel, st, res, ray)) continue;
+                L.scattered[s] = true;
+                for (int c = 0; c < 3; ++c) L.beta[c][s] = st.beta[c], L.o[c][s] = ray.o[c], L.d[c][s] = ray.d[c];
+                L.prev_pdf[s] = st.prev_pdf_w, L.prev_delta[s] = st.prev_delta, L.aux_done[s] = st.aux_done;
+                continue;
             }
-            if (h.material->black) continue;
+            if (!st.aux_done) {  // a Lambertian vertex is never pure delta
+                res.albedo = mat.bsdf->albedo(h.uv);
+                res.normal = h.frame.n;
+                L.aux_done[s] = true;
+            }
+            if (mat.black) continue;
             L.shade[s] = -1;
             const Vec2 u_dir = sampler.at2(block + dims::kBsdfDir);
             const LightSample ls = scene.sample_light(h.p, u_sel.x, sampler.at2(block + dims::kLightPoint));
             for (int c = 0; c < 3; ++c) {
                 L.p[c][s] = h.p[c], L.ng[c][s] = h.ng[c];
                 L.fs[c][s] = h.frame.s[c], L.ft[c][s] = h.frame.t[c], L.fn[c][s] = h.frame.n[c];
-                L.f[c][s] = h.material->lambertian_f[c];
+                L.f[c][s] = mat.lambertian_f[c];
                 L.lp[c][s] = ls.p[c], L.ln[c][s] = ls.n[c], L.le[c][s] = ls.radiance[c];
             }
             L.u[0][s] = u_dir.x, L.u[1][s] = u_dir.y;
@@ -211,7 +222,7 @@ void trace_lambertian_paths(const Scene& scene, const Ray* rays, SurfaceInteract
         // last live one, which has been seen already.
         for (int s = live - 1; s >= 0; --s) {
             PathResult& res = results[L.path[s]];
-            bool cont = false;
+            bool cont = L.scattered[s];
             if (L.shade[s]) {
                 if (L.connect[s]) {
                     ++res.rays;
@@ -227,14 +238,20 @@ void trace_lambertian_paths(const Scene& scene, const Ray* rays, SurfaceInteract
                         beta /= q;
                     }
                     for (int c = 0; c < 3; ++c) L.beta[c][s] = beta[c], L.o[c][s] = L.no[c][s], L.d[c][s] = L.nd[c][s];
-                    L.prev_pdf[s] = L.pdf[s];
+                    L.prev_pdf[s] = L.pdf[s], L.prev_delta[s] = false;
                 }
             }
-            if (cont) continue;
+            if (cont) {
+                const Vec2 u_next = samplers[L.path[s]]->at2(dims::vertex(depth + 1) + dims::kLightSelect);
+                L.u_light[s] = u_next.x, L.u_lobe[s] = u_next.y;
+                if (prefetch) scene.prefetch_light_table(u_next.x);
+                continue;
+            }
             const int last = --live;
             if (s == last) continue;
             for (int c = 0; c < 3; ++c) L.o[c][s] = L.o[c][last], L.d[c][s] = L.d[c][last], L.beta[c][s] = L.beta[c][last];
-            L.prev_pdf[s] = L.prev_pdf[last];
+            L.prev_pdf[s] = L.prev_pdf[last], L.prev_delta[s] = L.prev_delta[last], L.aux_done[s] = L.aux_done[last];
+            L.u_light[s] = L.u_light[last], L.u_lobe[s] = L.u_lobe[last];
             L.path[s] = L.path[last];
         }
     }
