@@ -379,7 +379,10 @@ bool Scene::occluded(const Ray& ray) const {
 bool Scene::visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1) const {
     const Vec3 d = p1 - p0;
     const Vec3 o = offset_ray_origin(p0, n0, d);
-    const Vec3 v = offset_ray_origin(p1, n1, -d) - o;
+    return segment_clear(o, offset_ray_origin(p1, n1, -d) - o);
+}
+
+bool Scene::segment_clear(const Vec3& o, const Vec3& v) const {
     if (!(glm::dot(v, v) > 0.f)) return true;
     // Embree needs no unit direction (see kSegmentEnd): a shadow ray thus
     // costs no square root and no division; G-PT casts about eight per sample.

@@ -55,9 +55,9 @@ struct Lanes {
     alignas(16) float lp[3][N], ln[3][N], le[3][N], lpdf[N];
     alignas(16) int32_t shade[N], lit[N];  // all ones: the vertex scatters; its light sample emits towards it
     // Stage B's results: the light connection (its contribution if the
-    // shadow ray passes), whether the path continues, with which
-    // throughput, pdf and ray.
-    alignas(16) float c[3][N], nbeta[3][N], pdf[N], no[3][N], nd[3][N];
+    // shadow segment so -> so + sv is clear), whether the path continues,
+    // with which throughput, pdf and ray.
+    alignas(16) float c[3][N], so[3][N], sv[3][N], nbeta[3][N], pdf[N], no[3][N], nd[3][N];
     alignas(16) int32_t connect[N], cont[N];
 };
 
@@ -134,6 +134,24 @@ inline void shade4(Lanes& L, int g) {
     const f4 scale = 1e-4f * (1.f < m2 ? m2 : one);
     const f4 gx = load(L.ng[0] + g), gy = load(L.ng[1] + g), gz = load(L.ng[2] + g);
     const f4 side = ((gx * ox + gy * oy) + gz * oz) >= 0.f ? scale : -scale;
+    // The shadow segment (Scene::visible's offsets of both ends).
+    {
+        const f4 near = ((gx * dx + gy * dy) + gz * dz) >= 0.f ? scale : -scale;
+        const f4 sox = px + near * gx, soy = py + near * gy, soz = pz + near * gz;
+        const f4 lx = load(L.lp[0] + g), ly = load(L.lp[1] + g), lz = load(L.lp[2] + g);
+        const f4 mx = load(L.ln[0] + g), my = load(L.ln[1] + g), mz = load(L.ln[2] + g);
+        const f4 bx = abs4(lx), by = abs4(ly), bz = abs4(lz);
+        const f4 l1 = by < bz ? bz : by;
+        const f4 l2 = bx < l1 ? l1 : bx;
+        const f4 lscale = 1e-4f * (1.f < l2 ? l2 : one);
+        const f4 far = ((mx * -dx + my * -dy) + mz * -dz) >= 0.f ? lscale : -lscale;
+        store(L.so[0] + g, sox);
+        store(L.so[1] + g, soy);
+        store(L.so[2] + g, soz);
+        store(L.sv[0] + g, (lx + far * mx) - sox);
+        store(L.sv[1] + g, (ly + far * my) - soy);
+        store(L.sv[2] + g, (lz + far * mz) - soz);
+    }
     store(L.no[0] + g, px + side * gx);
     store(L.no[1] + g, py + side * gy);
     store(L.no[2] + g, pz + side * gz);
@@ -147,11 +165,13 @@ inline void shade4(Lanes& L, int g) {
 
 void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteraction* si, const bool* hit,
                           Sampler* const* samplers, int m, const PathOptions& opt, PathResult* results) {
-    // Slots past `live` are shaded too (four at a time) and ignored: they
-    // start as zeros, and later hold an ended path's finite numbers, so
-    // that no lane computes with denormals.
+    // Slots that do not shade (past `live`, or whose path ends at this
+    // vertex) are computed too, four at a time, and ignored: they start as
+    // zeros, and later hold a path's finite numbers, so that no lane
+    // computes with denormals. Stage B's outputs need no start.
     Lanes L;
-    std::memset(static_cast<void*>(&L), 0, sizeof L);
+    const size_t state = m < N ? 0 : offsetof(Lanes, p);
+    std::memset(reinterpret_cast<char*>(&L) + state, 0, offsetof(Lanes, c) - state);
     int live = m;
     for (int i = 0; i < m; ++i) {
         results[i] = PathResult();
@@ -165,7 +185,8 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
     // Light-sample prefetching (Scene::prefetch_light_table) in two stages,
     // each for all paths at once so that their cache misses overlap: the
     // alias-table bucket when a path's emitter number is drawn (stage C), the
-    // emitter before the rays are cast (stage A).
+    // emitter before the rays are cast (stage A). (Drawn and prefetched in
+    // stage A, a vertex ahead, the numbers cost 1-2% more time.)
     const bool prefetch = opt.nee && scene.light_prefetch_pays();
 
     for (int depth = 1; live > 0; ++depth) {
@@ -217,7 +238,8 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
             L.lit[s] = is_black(ls.radiance) ? 0 : -1;
         }
         // Stage B.
-        for (int g = 0; g < live; g += 4) shade4(L, g);
+        for (int g = 0; g < live; g += 4)
+            if (L.shade[g] | L.shade[g + 1] | L.shade[g + 2] | L.shade[g + 3]) shade4(L, g);
         // Stage C, from the last slot down: an ended path's slot takes the
         // last live one, which has been seen already.
         for (int s = live - 1; s >= 0; --s) {
@@ -226,8 +248,8 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
             if (L.shade[s]) {
                 if (L.connect[s]) {
                     ++res.rays;
-                    const Vec3 lp(L.lp[0][s], L.lp[1][s], L.lp[2][s]), ln(L.ln[0][s], L.ln[1][s], L.ln[2][s]);
-                    if (scene.visible(si[s].p, si[s].ng, lp, ln)) res.radiance += Color(L.c[0][s], L.c[1][s], L.c[2][s]);
+                    const Vec3 o(L.so[0][s], L.so[1][s], L.so[2][s]), v(L.sv[0][s], L.sv[1][s], L.sv[2][s]);
+                    if (scene.segment_clear(o, v)) res.radiance += Color(L.c[0][s], L.c[1][s], L.c[2][s]);
                 }
                 if (L.cont[s]) {
                     Color beta(L.nbeta[0][s], L.nbeta[1][s], L.nbeta[2][s]);

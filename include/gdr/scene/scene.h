@@ -130,6 +130,10 @@ public:
     /// True if the straight segment between two surface points is unblocked
     /// (ends offset along their normals to avoid self-hits).
     bool visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1) const;
+    /// visible() once its ends are offset: o = offset_ray_origin(p0, n0, p1 -
+    /// p0) and v = offset_ray_origin(p1, n1, p0 - p1) - o (a caller that
+    /// computes the offsets of several segments together, e.g. vectorised).
+    bool segment_clear(const Vec3& o, const Vec3& v) const;
     /// visible() of a batch's segments traced as one Embree packet: out[i]
     /// is visible() of segment i, up to the packet kernel's rounding.
     /// Segments from neighbouring points to shared ends (a base path's four
