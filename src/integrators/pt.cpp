@@ -2,6 +2,7 @@
 // importance sampling (power heuristic) between light and BSDF sampling.
 #include <tuple>
 
+#include "gdr/core/in_place.h"
 #include "gdr/integrators/common.h"
 #include "gdr/integrators/path_dims.h"
 #include "gdr/integrators/pt.h"
@@ -71,7 +72,7 @@ protected:
                 Sampler& sampler = jobs[base + j].sampler;
                 sampler.set_dimension(dims::kFilm);
                 const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
-                ray[j] = scene.camera().generate_ray(film);
+                assign_in_place(ray[j], [&] { return scene.camera().generate_ray(film); });
                 // The first stage of the first vertex's light prefetch, which
                 // trace_path() does a vertex ahead (the packet's traversal
                 // then hides the load; the second stage follows at the vertex).
