@@ -11,7 +11,6 @@
 
 namespace gdr {
 
-
 namespace {
 
 PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,

@@ -9,9 +9,11 @@
 #include "pt_lockstep.h"
 
 #include <cstring>
+#include <string>
 
 #include <xmmintrin.h>
 
+#include "gdr/core/error.h"
 #include "gdr/integrators/common.h"
 #include "gdr/integrators/path_dims.h"
 
@@ -165,6 +167,9 @@ inline void shade4(Lanes& L, int g) {
 
 void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteraction* si, const bool* hit,
                           Sampler* const* samplers, int m, const PathOptions& opt, PathResult* results) {
+    if (!opt.nee || !scene.has_lights() || m < 0 || m > N)
+        throw RuntimeFailure("trace_lockstep_paths: needs NEE, a scene with emitters and at most " + std::to_string(N) +
+                             " paths");
     // Slots that do not shade (past `live`, or whose path ends at this
     // vertex) are computed too, four at a time, and ignored: they start as
     // zeros, and later hold a path's finite numbers, so that no lane
