@@ -297,7 +297,7 @@ TEST_CASE("cli: merging gradient-domain renders reconstructs the pooled buffers"
     const Image l1 = m.get("reconstruction_l1");
     // What reconstructing the merged primal and gradients gives.
     REQUIRE(cli::run({"reconstruct", out("gmerged.exr"), "--alpha", "0.2", "-o", out("grec.exr")}) == 0);
-    const Image& again = read_exr(out("grec.exr")).get("color");
+    const Image again = read_exr(out("grec.exr")).get("color");  // a copy: the FrameBuffer read is a temporary
     double num = 0, den = 0, avg_num = 0;
     for (size_t i = 0; i < l1.values().size(); ++i) {
         num += std::abs(double(l1.values()[i]) - again.values()[i]);
