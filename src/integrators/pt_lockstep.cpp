@@ -61,7 +61,26 @@ struct Lanes {
     // with which throughput, pdf and ray.
     alignas(16) float c[3][N], so[3][N], sv[3][N], nbeta[3][N], pdf[N], no[3][N], nd[3][N];
     alignas(16) int32_t connect[N], cont[N];
+
+    /// Moves the path in slot `from` to slot `to`: what a path carries
+    /// between vertices (the rest is rebuilt at every vertex).
+    void move_path(int from, int to) {
+        for (int c = 0; c < 3; ++c) o[c][to] = o[c][from], d[c][to] = d[c][from], beta[c][to] = beta[c][from];
+        prev_pdf[to] = prev_pdf[from], prev_delta[to] = prev_delta[from], aux_done[to] = aux_done[from];
+        u_light[to] = u_light[from], u_lobe[to] = u_lobe[from];
+        path[to] = path[from];
+    }
 };
+
+// offset_ray_origin()'s offset length at p: 1e-4 max(1, |p.x|, |p.y|, |p.z|),
+// with std::max's (a < b) ? b : a, so that the bits match.
+inline f4 offset_scale(f4 px, f4 py, f4 pz) {
+    const f4 ax = abs4(px), ay = abs4(py), az = abs4(pz);
+    const f4 m1 = ay < az ? az : ay;
+    const f4 m2 = ax < m1 ? m1 : ax;
+    const f4 one = {1.f, 1.f, 1.f, 1.f};
+    return 1e-4f * (1.f < m2 ? m2 : one);
+}
 
 // Stage B for slots g..g+3.
 inline void shade4(Lanes& L, int g) {
@@ -69,13 +88,9 @@ inline void shade4(Lanes& L, int g) {
     const f4 sx = load(L.fs[0] + g), sy = load(L.fs[1] + g), sz = load(L.fs[2] + g);
     const f4 tx = load(L.ft[0] + g), ty = load(L.ft[1] + g), tz = load(L.ft[2] + g);
     const f4 nx = load(L.fn[0] + g), ny = load(L.fn[1] + g), nz = load(L.fn[2] + g);
-    const auto local = [&](f4 vx, f4 vy, f4 vz, f4& lx, f4& ly, f4& lz) {  // Frame::to_local
-        lx = (vx * sx + vy * sy) + vz * sz;
-        ly = (vx * tx + vy * ty) + vz * tz;
-        lz = (vx * nx + vy * ny) + vz * nz;
-    };
-    f4 wox, woy, woz;
-    local(-load(L.d[0] + g), -load(L.d[1] + g), -load(L.d[2] + g), wox, woy, woz);
+    // Only the cosines of wo and of the light direction are needed
+    // (Frame::to_local's z): a Lambertian lobe depends on nothing else.
+    const f4 woz = (-load(L.d[0] + g) * nx + -load(L.d[1] + g) * ny) + -load(L.d[2] + g) * nz;
     const i4 shade = load(L.shade + g);
 
     // Cosine-weighted direction (warp::square_to_cosine_hemisphere).
@@ -105,7 +120,7 @@ inline void shade4(Lanes& L, int g) {
     const f4 dist2 = (dx * dx + dy * dy) + dz * dz;
     const f4 dist = sqrt4(dist2);
     const f4 wwx = dx / dist, wwy = dy / dist, wwz = dz / dist;
-    const f4 wlz = (wwx * nx + wwy * ny) + wwz * nz;  // only the cosine of the light direction is needed
+    const f4 wlz = (wwx * nx + wwy * ny) + wwz * nz;
     const i4 connect = shade & load(L.lit + g) & (dist2 > 0.f) & (woz * wlz > 0.f);
     const f4 cos_l = (load(L.ln[0] + g) * -wwx + load(L.ln[1] + g) * -wwy) + load(L.ln[2] + g) * -wwz;
     const f4 pdf_l = cos_l > 0.f ? load(L.lpdf + g) * dist * dist / cos_l : zero;
@@ -119,7 +134,7 @@ inline void shade4(Lanes& L, int g) {
     store(L.connect + g, connect);
 
     // The continuation: throughput, direction (Frame::to_world) and origin
-    // (offset_ray_origin, std::max as (a < b) ? b : a).
+    // (offset_ray_origin).
     const i4 cont = shade & sampled & (pdf > 0.f);
     const f4 k = abs4(wiz) / pdf;
     store(L.nbeta[0] + g, br * (fr * k));
@@ -129,11 +144,7 @@ inline void shade4(Lanes& L, int g) {
     const f4 ox = (sx * wix + tx * wiy) + nx * wiz;
     const f4 oy = (sy * wix + ty * wiy) + ny * wiz;
     const f4 oz = (sz * wix + tz * wiy) + nz * wiz;
-    const f4 ax = abs4(px), ay = abs4(py), az = abs4(pz);
-    const f4 m1 = ay < az ? az : ay;
-    const f4 m2 = ax < m1 ? m1 : ax;
-    const f4 one = zero + 1.f;
-    const f4 scale = 1e-4f * (1.f < m2 ? m2 : one);
+    const f4 scale = offset_scale(px, py, pz);
     const f4 gx = load(L.ng[0] + g), gy = load(L.ng[1] + g), gz = load(L.ng[2] + g);
     const f4 side = ((gx * ox + gy * oy) + gz * oz) >= 0.f ? scale : -scale;
     // The shadow segment (Scene::visible's offsets of both ends).
@@ -142,10 +153,7 @@ inline void shade4(Lanes& L, int g) {
         const f4 sox = px + near * gx, soy = py + near * gy, soz = pz + near * gz;
         const f4 lx = load(L.lp[0] + g), ly = load(L.lp[1] + g), lz = load(L.lp[2] + g);
         const f4 mx = load(L.ln[0] + g), my = load(L.ln[1] + g), mz = load(L.ln[2] + g);
-        const f4 bx = abs4(lx), by = abs4(ly), bz = abs4(lz);
-        const f4 l1 = by < bz ? bz : by;
-        const f4 l2 = bx < l1 ? l1 : bx;
-        const f4 lscale = 1e-4f * (1.f < l2 ? l2 : one);
+        const f4 lscale = offset_scale(lx, ly, lz);
         const f4 far = ((mx * -dx + my * -dy) + mz * -dz) >= 0.f ? lscale : -lscale;
         store(L.so[0] + g, sox);
         store(L.so[1] + g, soy);
@@ -275,10 +283,7 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
             }
             const int last = --live;
             if (s == last) continue;
-            for (int c = 0; c < 3; ++c) L.o[c][s] = L.o[c][last], L.d[c][s] = L.d[c][last], L.beta[c][s] = L.beta[c][last];
-            L.prev_pdf[s] = L.prev_pdf[last], L.prev_delta[s] = L.prev_delta[last], L.aux_done[s] = L.aux_done[last];
-            L.u_light[s] = L.u_light[last], L.u_lobe[s] = L.u_lobe[last];
-            L.path[s] = L.path[last];
+            L.move_path(last, s);
         }
     }
 }
