@@ -152,6 +152,7 @@ void Scene::build_lights() {
     // power: one value per material, so an emitter hit finds its pdf in a
     // small table instead of a per-triangle array (a cache miss in big scenes).
     light_pdf_by_material_.assign(materials_.size(), 0.f);
+    std::vector<Emitter> emitters;
     std::vector<double> power;
     double total = 0.0;
     for (uint32_t t = 0; t < mesh_.size(); ++t) {
@@ -163,36 +164,43 @@ void Scene::build_lights() {
         const double area = 0.5 * glm::length(glm::cross(e1, e2));
         const double pw = double(luminance(mat.emission)) * area;
         if (!(pw > 0.0)) continue;
-        emitters_.push_back(Emitter{p[0], e1, e2, glm::normalize(glm::cross(e1, e2)), mid, t});
+        emitters.push_back(Emitter{p[0], e1, e2, glm::normalize(glm::cross(e1, e2)), mid, t});
         power.push_back(pw);
         total += pw;
     }
-    stats_.emitters = emitters_.size();
+    stats_.emitters = emitters.size();
     // Half of a typical 32 KiB first-level data cache: beyond it, an emitter
     // picked at random is often not cached when its light sample is drawn.
     constexpr size_t kCachedLightBytes = size_t(16) << 10;
-    light_prefetch_pays_ = emitters_.size() * sizeof(Emitter) > kCachedLightBytes;
-    if (emitters_.empty()) return;
-    for (Emitter& e : emitters_)
+    light_prefetch_pays_ = emitters.size() * sizeof(LightBucket) > kCachedLightBytes;
+    if (emitters.empty()) return;
+    for (const Emitter& e : emitters)
         light_pdf_by_material_[e.material] = float(double(luminance(materials_[e.material].emission)) / total);
     // Walker/Vose alias table: bucket i holds emitter i with probability keep
     // and its alias otherwise; every bucket is drawn with probability 1/n.
-    const size_t n = emitters_.size();
+    const size_t n = emitters.size();
     std::vector<double> scaled(n);
-    std::vector<uint32_t> small, large;
+    std::vector<float> keep(n, 1.f);
+    std::vector<uint32_t> alias(n), small, large;
     for (size_t i = 0; i < n; ++i) {
         scaled[i] = power[i] / total * double(n);
-        emitters_[i].keep = 1.f, emitters_[i].alias = uint32_t(i);
+        alias[i] = uint32_t(i);
         (scaled[i] < 1.0 ? small : large).push_back(uint32_t(i));
     }
     while (!small.empty() && !large.empty()) {
         const uint32_t s = small.back(), l = large.back();
         small.pop_back();
-        emitters_[s].keep = float(scaled[s]), emitters_[s].alias = l;
+        keep[s] = float(scaled[s]), alias[s] = l;
         scaled[l] -= 1.0 - scaled[s];
         if (scaled[l] < 1.0) large.pop_back(), small.push_back(l);
     }
     // Whatever is left holds 1 up to rounding and keeps its own emitter.
+    buckets_.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+        buckets_[i].e[0] = emitters[i];
+        buckets_[i].e[0].keep = keep[i];
+        buckets_[i].e[1] = emitters[alias[i]];
+    }
 }
 
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
@@ -468,9 +476,9 @@ void Scene::visible8(const VisibilityBatch& q, bool out[8]) const {
 
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
     LightSample ls;
-    if (emitters_.empty()) return ls;
+    if (buckets_.empty()) return ls;
     // One number picks the bucket and, by its fraction, emitter or alias.
-    const Emitter& e = emitters_[light_select(u_sel)];
+    const Emitter& e = light_select(u_sel);
     // Uniform point on the triangle (square-root parameterisation): barycentrics
     // (1 - sqrt(u.x), u.y sqrt(u.x), the rest) of the corners p0, p1, p2.
     const float su = std::sqrt(u.x);

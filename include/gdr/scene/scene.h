@@ -144,24 +144,21 @@ public:
 
     /// Samples a point on an emitter by power then area (u_sel picks the triangle, u the point).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
-    /// Light-sample prefetching, in two stages so that neither stalls: for a
-    /// sample_light(ref, u_sel, u) coming up soon, prefetch_light_table(u_sel)
-    /// starts loading the alias-table bucket, which holds its own emitter
-    /// (nothing is read); later, prefetch_light(u_sel) reads that bucket and
-    /// starts loading its alias if the alias is selected. A path tracer calls
-    /// the first one vertex ahead and the second before the ray cast that
-    /// reaches the vertex. Hints only: results never change.
+    /// Light-sample prefetching: for a sample_light(ref, u_sel, u) coming up
+    /// soon, prefetch_light_table(u_sel) starts loading the alias-table
+    /// bucket it picks, which holds both emitters it may take (nothing is
+    /// read, so nothing stalls). A path tracer calls it a vertex ahead.
+    /// prefetch_light(u_sel) does the same; it is meant for just before the
+    /// ray cast that reaches the vertex. Hints only: results never change.
     void prefetch_light_table(float u_sel) const {
-        if (!emitters_.empty()) prefetch(&emitters_[light_pick(u_sel).bucket]);
+        if (!buckets_.empty()) prefetch_bucket(light_pick(u_sel).bucket);
     }
-    /// Second stage of light-sample prefetching (see prefetch_light_table).
-    void prefetch_light(float u_sel) const {
-        if (!emitters_.empty()) prefetch(&emitters_[light_select(u_sel)]);
-    }
+    /// See prefetch_light_table.
+    void prefetch_light(float u_sel) const { prefetch_light_table(u_sel); }
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
     /// True if the scene has any emitter.
-    bool has_lights() const { return !emitters_.empty(); }
+    bool has_lights() const { return !buckets_.empty(); }
     /// True if light-sample prefetching pays: the emitters and their alias
     /// table exceed what stays in the first-level cache. With a few emitters
     /// the prefetches only cost instructions.
@@ -186,6 +183,23 @@ public:
 
 private:
     void build_lights();
+    // An emitting triangle as sample_light needs it, one cache line.
+    struct alignas(64) Emitter {
+        Vec3 p0, e1, e2;      // corner and edges
+        Vec3 n;               // unit front normal
+        uint32_t material;    // index into materials_ (emitted radiance, light_pdf_by_material_)
+        uint32_t prim;        // triangle id
+        float keep = 1.f;     // in a LightBucket's e[0]: the probability of keeping it
+    };
+    // Bucket i of Walker's alias table: emitter i, kept with probability
+    // e[0].keep, and a copy of its alias, taken otherwise, on two adjacent
+    // cache lines. A pick then reads one line that a single prefetch, a
+    // vertex ahead, already asked for; with the alias stored by index, the
+    // picks that take it (38% on veach-mis) waited for a second, dependent miss.
+    struct alignas(128) LightBucket {
+        Emitter e[2];  // this bucket's emitter, its alias
+    };
+    static_assert(sizeof(Emitter) == 64 && sizeof(LightBucket) == 128, "a bucket is two cache lines");
     // The alias-table bucket u_sel falls in, and u_sel's fraction within it,
     // in 32.32 fixed point: u_sel 2^32 is exact for the sampler's numbers
     // (multiples of 2^-24), so the product with the emitter count, and the
@@ -197,17 +211,16 @@ private:
         float fraction;
     };
     LightPick light_pick(float u_sel) const {
-        const uint64_t n = emitters_.size();
+        const uint64_t n = buckets_.size();
         const uint64_t fixed = uint64_t(int64_t(u_sel * 0x1p32f)) * n;
         return {uint32_t(std::min(fixed >> 32, n - 1)), float(int64_t(uint32_t(fixed))) * 0x1p-32f};
     }
-    // The emitter sample_light picks with u_sel: the bucket's own, or its
-    // alias (a select, not a branch: the choice is a coin flip per sample).
-    uint32_t light_select(float u_sel) const {
+    // The emitter sample_light picks with u_sel: the bucket's own, or (a
+    // coin flip per sample, so an index, not a branch) its alias.
+    const Emitter& light_select(float u_sel) const {
         const LightPick k = light_pick(u_sel);
-        const Emitter& e = emitters_[k.bucket];
-        const uint32_t take_alias = -uint32_t(!(k.fraction < e.keep));  // all ones or zero
-        return k.bucket ^ ((k.bucket ^ e.alias) & take_alias);
+        const LightBucket& b = buckets_[k.bucket];
+        return b.e[!(k.fraction < b.e[0].keep)];
     }
     // A cache-line prefetch the optimiser cannot drop (GCC discards
     // __builtin_prefetch in some inlined contexts at -O2).
@@ -226,19 +239,11 @@ private:
     static constexpr uint32_t kSmooth = 1u << 31;   // vertex normals differ from the face normal
     static constexpr uint32_t kHasUv = 1u << 30;    // texture coordinates are not all zero
     static constexpr uint32_t kMaterialMask = kHasUv - 1;
-    // An emitting triangle as sample_light needs it, and bucket i of
-    // Walker's alias table (keep emitter i with probability keep, else take
-    // alias), in one cache line: most picks keep their bucket's emitter and
-    // so read one line, not a bucket's and then an emitter's.
-    struct alignas(64) Emitter {
-        Vec3 p0, e1, e2;      // corner and edges
-        Vec3 n;               // unit front normal
-        uint32_t material;    // index into materials_ (emitted radiance, light_pdf_by_material_)
-        uint32_t prim;        // triangle id
-        float keep = 1.f;     // alias table: probability of keeping this bucket's emitter
-        uint32_t alias = 0;   // alias table: the emitter taken otherwise
-    };
-    static_assert(sizeof(Emitter) == 64, "an emitter and its alias bucket fill one cache line");
+    void prefetch_bucket(uint32_t i) const {
+        const char* b = reinterpret_cast<const char*>(&buckets_[i]);
+        prefetch(b);
+        prefetch(b + 64);
+    }
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     Camera camera_;
@@ -246,7 +251,7 @@ private:
     float radius_ = 1.f;
     std::vector<uint32_t> hit_info_;        // per triangle: material | kSmooth | kHasUv
     std::vector<Frame> flat_frames_;        // per triangle: its face frame, or empty (a big scene)
-    std::vector<Emitter> emitters_;         // emitting triangles and the alias table over them, for sample_light()
+    std::vector<LightBucket> buckets_;      // the alias table over the emitting triangles, for sample_light()
     bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
     bool any_lambertian_ = false;           // see any_lambertian()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
