@@ -72,9 +72,8 @@ protected:
                 sampler.set_dimension(dims::kFilm);
                 const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
                 assign_in_place(ray[j], [&] { return scene.camera().generate_ray(film); });
-                // The first stage of the first vertex's light prefetch, which
-                // trace_path() does a vertex ahead (the packet's traversal
-                // then hides the load; the second stage follows at the vertex).
+                // The first vertex's light prefetch, which the kernels
+                // otherwise do a vertex ahead: the packet's traversal hides the load.
                 if (nee_ && scene.light_prefetch_pays())
                     scene.prefetch_light_table(sampler.at(dims::vertex(1) + dims::kLightSelect));
             }
@@ -126,15 +125,16 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
     for (int depth = 1;; ++depth) {
         SurfaceInteraction traced;
         ++r.rays;
-        // Light samples are known before their vertices are: start their cache
-        // misses now so they overlap the traversal (this vertex's emitter, the
-        // next vertex's alias-table bucket).
+        // Light samples are known before their vertices are: the next
+        // vertex's alias-table bucket starts loading now, so that its cache
+        // miss overlaps this traversal and the next (the first vertex's,
+        // unless sample_batch() did, right before its cast).
         // The emitter and lobe numbers are one pair (one hash): both are drawn a vertex ahead.
         const Vec2 u_sel = depth == 1 ? sampler.at2(dims::vertex(depth) + dims::kLightSelect) : u_sel_next;
         static_assert(dims::kBsdfLobe == dims::kLightSelect + 1);
         u_sel_next = sampler.at2(dims::vertex(depth + 1) + dims::kLightSelect);
         if (opt.nee && scene.light_prefetch_pays()) {
-            scene.prefetch_light(u_sel.x);
+            if (depth == 1 && !first) scene.prefetch_light(u_sel.x);
             scene.prefetch_light_table(u_sel_next.x);
         }
         if (depth == 1 && first) {

@@ -196,11 +196,10 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
         L.u_light[i] = u_sel.x, L.u_lobe[i] = u_sel.y;
     }
     // Light-sample prefetching: the alias-table bucket of a path's next
-    // emitter (which holds the bucket's own emitter) as its number is drawn
+    // emitter (which holds both emitters it may pick) as its number is drawn
     // in stage C, a vertex ahead. On veach-mis (11,904 emitters) this saves
-    // about 5% of the CPU time; the second stage (Scene::prefetch_light,
-    // the alias's line) cost 1% more than it saved, and drawing the numbers
-    // in stage A instead of C 1-2% more.
+    // about 5% of the CPU time; drawing the numbers in stage A instead of C
+    // cost 1-2% more.
     const bool prefetch = opt.nee && scene.light_prefetch_pays();
 
     for (int depth = 1; live > 0; ++depth) {
