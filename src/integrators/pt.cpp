@@ -75,7 +75,7 @@ protected:
                 // The first vertex's light prefetch, which the kernels
                 // otherwise do a vertex ahead: the packet's traversal hides the load.
                 if (nee_ && scene.light_prefetch_pays())
-                    scene.prefetch_light_table(sampler.at(dims::vertex(1) + dims::kLightSelect));
+                    scene.prefetch_light(sampler.at(dims::vertex(1) + dims::kLightSelect));
             }
             scene.intersect8(ray, active, sip, hit);
             PathResult results[kPacket];
@@ -135,7 +135,7 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
         u_sel_next = sampler.at2(dims::vertex(depth + 1) + dims::kLightSelect);
         if (opt.nee && scene.light_prefetch_pays()) {
             if (depth == 1 && !first) scene.prefetch_light(u_sel.x);
-            scene.prefetch_light_table(u_sel_next.x);
+            scene.prefetch_light(u_sel_next.x);
         }
         if (depth == 1 && first) {
             if (!first_hit) break;

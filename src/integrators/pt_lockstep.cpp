@@ -277,7 +277,7 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
             if (cont) {
                 const Vec2 u_next = samplers[L.path[s]]->at2(dims::vertex(depth + 1) + dims::kLightSelect);
                 L.u_light[s] = u_next.x, L.u_lobe[s] = u_next.y;
-                if (prefetch) scene.prefetch_light_table(u_next.x);
+                if (prefetch) scene.prefetch_light(u_next.x);
                 continue;
             }
             const int last = --live;

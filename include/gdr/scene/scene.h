@@ -145,16 +145,16 @@ public:
     /// Samples a point on an emitter by power then area (u_sel picks the triangle, u the point).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
     /// Light-sample prefetching: for a sample_light(ref, u_sel, u) coming up
-    /// soon, prefetch_light_table(u_sel) starts loading the alias-table
-    /// bucket it picks, which holds both emitters it may take (nothing is
-    /// read, so nothing stalls). A path tracer calls it a vertex ahead.
-    /// prefetch_light(u_sel) does the same; it is meant for just before the
-    /// ray cast that reaches the vertex. Hints only: results never change.
-    void prefetch_light_table(float u_sel) const {
-        if (!buckets_.empty()) prefetch_bucket(light_pick(u_sel).bucket);
+    /// soon (best a vertex ahead, at least before the cast that reaches the
+    /// vertex), starts loading the alias-table bucket u_sel picks, which
+    /// holds both emitters it may take. Nothing is read, so nothing stalls.
+    /// A hint only: results never change.
+    void prefetch_light(float u_sel) const {
+        if (buckets_.empty()) return;
+        const char* b = reinterpret_cast<const char*>(&buckets_[light_pick(u_sel).bucket]);
+        prefetch(b);
+        prefetch(b + 64);
     }
-    /// See prefetch_light_table.
-    void prefetch_light(float u_sel) const { prefetch_light_table(u_sel); }
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
     /// True if the scene has any emitter.
@@ -239,11 +239,6 @@ private:
     static constexpr uint32_t kSmooth = 1u << 31;   // vertex normals differ from the face normal
     static constexpr uint32_t kHasUv = 1u << 30;    // texture coordinates are not all zero
     static constexpr uint32_t kMaterialMask = kHasUv - 1;
-    void prefetch_bucket(uint32_t i) const {
-        const char* b = reinterpret_cast<const char*>(&buckets_[i]);
-        prefetch(b);
-        prefetch(b + 64);
-    }
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     Camera camera_;
