@@ -169,7 +169,7 @@ void Scene::build_lights() {
         total += pw;
     }
     stats_.emitters = emitters.size();
-    // Half of a typical 32 KiB first-level data cache: beyond it, an emitter
+    // Half of a typical 32 KiB first-level data cache: beyond it, a bucket
     // picked at random is often not cached when its light sample is drawn.
     constexpr size_t kCachedLightBytes = size_t(16) << 10;
     light_prefetch_pays_ = emitters.size() * sizeof(LightBucket) > kCachedLightBytes;
@@ -179,28 +179,22 @@ void Scene::build_lights() {
     // Walker/Vose alias table: bucket i holds emitter i with probability keep
     // and its alias otherwise; every bucket is drawn with probability 1/n.
     const size_t n = emitters.size();
+    buckets_.resize(n);
     std::vector<double> scaled(n);
-    std::vector<float> keep(n, 1.f);
-    std::vector<uint32_t> alias(n), small, large;
+    std::vector<uint32_t> small, large;
     for (size_t i = 0; i < n; ++i) {
         scaled[i] = power[i] / total * double(n);
-        alias[i] = uint32_t(i);
+        buckets_[i].e[0] = buckets_[i].e[1] = emitters[i];  // keep 1: its own emitter either way
         (scaled[i] < 1.0 ? small : large).push_back(uint32_t(i));
     }
     while (!small.empty() && !large.empty()) {
         const uint32_t s = small.back(), l = large.back();
         small.pop_back();
-        keep[s] = float(scaled[s]), alias[s] = l;
+        buckets_[s].e[0].keep = float(scaled[s]), buckets_[s].e[1] = emitters[l];
         scaled[l] -= 1.0 - scaled[s];
         if (scaled[l] < 1.0) large.pop_back(), small.push_back(l);
     }
     // Whatever is left holds 1 up to rounding and keeps its own emitter.
-    buckets_.resize(n);
-    for (size_t i = 0; i < n; ++i) {
-        buckets_[i].e[0] = emitters[i];
-        buckets_[i].e[0].keep = keep[i];
-        buckets_[i].e[1] = emitters[alias[i]];
-    }
 }
 
 bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
