@@ -302,6 +302,7 @@ std::string fmt_speedup(double t_pt, const ReachTime& r, const std::vector<Curve
 int main(int argc, char** argv) try {
     const Options o = parse(argc, argv);
     fs::create_directories(o.out);
+    std::printf("machine: %s\n", gdr::bench::machine_description().c_str());
     std::printf("equal-time benchmark: width %d, budgets", o.width);
     for (double b : o.budgets) std::printf(" %g", b);
     if (o.ref_spp > 0) std::printf(" s, reference PT %lld spp cached in %s\n", o.ref_spp, o.cache.c_str());

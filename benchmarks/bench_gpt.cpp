@@ -61,6 +61,7 @@ int main(int argc, char** argv) {
         const std::string path = argc > 1 ? argv[1] : GDR_SOURCE_DIR "/scenes/cornell-box/scene.json";
         int repeats = 3;
         if (argc > 2) repeats = int(cli::ArgReader::parse_int("repeats", argv[2], 1, 10000));
+        std::printf("machine: %s\n", bench::machine_description().c_str());
         return run(path, repeats);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench_gpt: error: %s\n", e.what());

@@ -225,6 +225,7 @@ int main(int argc, char** argv) {
         if (scenes.empty())
             scenes = {std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/scene.json",
                       std::string(GDR_SOURCE_DIR) + "/scenes/veach-mis/scene.json"};
+        fmt::print("machine: {}\n", gdr::bench::machine_description());
         bool ok = true;
         for (const auto& s : scenes) ok &= bench_scene(s, spp, repeats, threads, sets);
         return ok ? 0 : 3;

@@ -125,6 +125,7 @@ int main(int argc, char** argv) {
             return 2;
         }
     }
+    std::printf("machine: %s\n", gdr::bench::machine_description().c_str());
     const int W = 1280, H = 720;
     const std::string ref_dir = std::string(GDR_SHARED_DIR) + "/reference-outputs/mitsuba-gpt-cbox-16spp";
     const bool have_ref = std::filesystem::exists(ref_dir + "/cbox-final.exr");

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <algorithm>
+#include <fstream>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -22,6 +24,29 @@ inline std::pair<double, double> quartiles(std::vector<double> v) {
     std::sort(v.begin(), v.end());
     const size_t n = v.size();
     return {v[(n - 1) / 4], v[n - 1 - (n - 1) / 4]};
+}
+
+/// One line naming the processor and its caches, printed before any figure:
+/// the ratio of shading to bare traversal depends on the machine (its caches
+/// above all), so a figure means little without it.
+inline std::string machine_description() {
+    std::string model = "unknown processor", line;
+    std::ifstream cpuinfo("/proc/cpuinfo");
+    while (std::getline(cpuinfo, line))
+        if (line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) {
+            model = line.substr(line.find(':') + 2);
+            break;
+        }
+    std::string caches;
+    for (int i = 0; i < 8; ++i) {
+        const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(i) + "/";
+        std::ifstream level(dir + "level"), type(dir + "type"), size(dir + "size");
+        std::string l, t, z;
+        if (!(level >> l) || !(type >> t) || !(size >> z)) break;
+        if (t == "Instruction") continue;
+        caches += (caches.empty() ? "" : ", ") + std::string("L") + l + (t == "Data" ? "d " : " ") + z;
+    }
+    return model + (caches.empty() ? std::string() : " (" + caches + ")");
 }
 
 }  // namespace gdr::bench
