@@ -27,8 +27,8 @@ inline std::pair<double, double> quartiles(std::vector<double> v) {
 }
 
 /// One line naming the processor and its caches, printed before any figure:
-/// the ratio of shading to bare traversal depends on the machine (its caches
-/// above all), so a figure means little without it.
+/// the ratio of shading to bare traversal differs between machines, so a
+/// figure means little without it.
 inline std::string machine_description() {
     std::string model = "unknown processor", line;
     std::ifstream cpuinfo("/proc/cpuinfo");
