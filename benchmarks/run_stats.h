@@ -30,13 +30,24 @@ inline std::pair<double, double> quartiles(std::vector<double> v) {
 /// the ratio of shading to bare traversal differs between machines, so a
 /// figure means little without it.
 inline std::string machine_description() {
-    std::string model = "unknown processor", line;
+    // A virtual machine often reports a generic model name, so the family
+    // and model numbers and the widest vector extension are given too.
+    std::string model = "unknown processor", family, number, simd, line;
     std::ifstream cpuinfo("/proc/cpuinfo");
-    while (std::getline(cpuinfo, line))
-        if (line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) {
-            model = line.substr(line.find(':') + 2);
-            break;
+    const auto value = [&line] { return line.substr(line.find(':') + 2); };
+    while (std::getline(cpuinfo, line) && line.find(':') != std::string::npos) {
+        if (line.rfind("model name", 0) == 0) model = value();
+        else if (line.rfind("cpu family", 0) == 0) family = value();
+        else if (line.rfind("model\t", 0) == 0) number = value();
+        else if (line.rfind("flags", 0) == 0) {
+            const std::string flags = value() + " ";
+            simd = flags.find(" avx512f ") != std::string::npos ? "AVX-512"
+                   : flags.find(" avx2 ") != std::string::npos ? "AVX2"
+                                                               : "no AVX2";
         }
+    }
+    if (!family.empty()) model += ", family " + family + " model " + number;
+    if (!simd.empty()) model += ", " + simd;
     std::string caches;
     for (int i = 0; i < 8; ++i) {
         const std::string dir = "/sys/devices/system/cpu/cpu0/cache/index" + std::to_string(i) + "/";
