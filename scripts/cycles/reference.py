@@ -115,9 +115,13 @@ def build_scene(scene_path):
     base = os.path.dirname(os.path.abspath(scene_path))
     if "materials" in desc:
         fail(f"{scene_path}: material overrides are not supported by this comparison")
-    cam = desc.get("camera", {})
+    cam = dict(desc.get("camera", {}))
     if "file" in cam:
-        fail(f"{scene_path}: camera.file is not supported by this comparison; give the camera inline")
+        # As gdr reads it: the file's keys, overridden by the scene's own.
+        with open(os.path.join(base, cam.pop("file"))) as f:
+            cam = {**json.load(f), **cam}
+        if "fov_deg" in cam:
+            cam["fov"] = cam.pop("fov_deg")
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
