@@ -1,6 +1,7 @@
 // The path tracer against known answers: emitters seen directly, the white
 // furnace, a floor lit by a parallel square light (form factor), NEE+MIS vs
-// BSDF sampling on the Cornell box; and the render loop's guarantees:
+// BSDF sampling on the Cornell box; against another renderer (Blender
+// Cycles, on two Cornell boxes); and the render loop's guarantees:
 // bit-identical images for any thread count, exact resume, NaN accounting.
 //
 // Statistical checks are z-tests with the per-pixel sample variance the
