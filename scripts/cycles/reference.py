@@ -69,6 +69,8 @@ def parse_mtl(path):
             continue  # opaque, spelt out
         if t[0] not in LAMBERTIAN_KEYS:
             fail(f"{path}:{n}: material '{cur}' has '{t[0]}', which this comparison does not support")
+        if t[0] == "illum" and int(t[1]) not in (0, 1, 2):
+            fail(f"{path}:{n}: material '{cur}' has illum {t[1]} (gdr's mirror or glass); only Lambertian materials are compared")
         if t[0] == "Ks" and any(float(x) != 0.0 for x in t[1:4]):
             fail(f"{path}:{n}: material '{cur}' has a specular Ks; only Lambertian materials are compared")
         if t[0] in ("Kd", "Ke"):
