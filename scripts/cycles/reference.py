@@ -50,7 +50,7 @@ def parse_args():
 
 # Terms a Lambertian emitter or reflector may carry; anything else changes
 # what gdr renders (a glossy lobe, a texture, transparency) and is refused.
-LAMBERTIAN_KEYS = {"newmtl", "Kd", "Ke", "Ka", "Ns", "Ni", "illum", "Ks"}
+LAMBERTIAN_KEYS = {"Kd", "Ke", "Ka", "Ns", "Ni", "illum", "Ks"}
 
 
 def parse_mtl(path):
