@@ -51,12 +51,12 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
                 throw InputError(origin + ": triangle " + std::to_string(t) + " has a non-finite vertex");
         if (mesh.material_ids[t] >= materials_.size())
             throw InputError(origin + ": triangle " + std::to_string(t) + " has no material");
-        const Vec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
-        const float len = glm::length(c);
-        if (!(len > 0.f) || !std::isfinite(len)) {
+        if (zero_area_triangle(p[0], p[1], p[2])) {
             stats_.degenerate_skipped++;
             continue;
         }
+        const Vec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
+        const float len = glm::length(c);
         for (int k = 0; k < 3; ++k) {
             m.positions.push_back(p[k]);
             if (has_n) {

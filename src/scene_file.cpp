@@ -1,13 +1,18 @@
 #include "gdr/io/scene_file.h"
 
+#include <cerrno>
 #include <charconv>
+#include <climits>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <set>
 #include <sstream>
+#include <string_view>
 #include <vector>
 
 #include <fmt/core.h>
@@ -67,24 +72,137 @@ Vec3 get_vec3(const std::string& file, const json& j, const std::string& key) {
     return Vec3(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
 }
 
-CameraDesc parse_camera(const std::string& file, const json& j) {
+// Why `file` cannot be read as a file (": file not found", ": not a file (a
+// directory)"), or "" if it can.
+std::string not_a_file(const std::string& file) {
+    std::error_code ec;
+    const fs::file_status st = fs::status(file, ec);
+    if (fs::is_regular_file(st)) return "";
+    if (fs::is_directory(st)) return ": not a file (it is a directory)";
+    return fs::exists(st) ? ": not a file" : ": file not found";
+}
+
+// The whole of a file, or an InputError naming it.
+std::string read_file_text(const std::string& file) {
+    if (const std::string why = not_a_file(file); !why.empty()) throw InputError(file + why);
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(file + ": cannot open: " + std::strerror(errno));
+    // One read of the whole size: meshes run to tens of megabytes, which a
+    // character-wise copy takes a noticeable part of the load to read.
+    std::string text;
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    in.seekg(0, std::ios::beg);
+    if (size > 0) {
+        text.resize(size_t(size));
+        in.read(text.data(), size);
+        text.resize(size_t(in.gcount()));
+    }
+    // A file that grows meanwhile (or reports no size) is read to its end.
+    text.append(std::istreambuf_iterator<char>(in), {});
+    if (in.bad()) throw InputError(file + ": cannot read: " + std::strerror(errno));
+    return text;
+}
+
+// Parses a JSON file. A key given twice in one object is an error: the parser
+// would keep only the last value, silently dropping a setting the user wrote.
+json parse_json_file(const std::string& file) {
+    const std::string text = read_file_text(file);
+    // The open objects and arrays: their key path for messages, and an object's keys so far.
+    struct Open {
+        bool object;
+        std::string path;
+        std::set<std::string> keys;
+        std::string key;  // the latest key, whose value may be a nested object or array
+    };
+    std::vector<Open> open;
+    const json::parser_callback_t check = [&](int, json::parse_event_t event, json& parsed) {
+        switch (event) {
+        case json::parse_event_t::object_start:
+        case json::parse_event_t::array_start: {
+            std::string path;
+            if (!open.empty()) {
+                const Open& outer = open.back();
+                path = outer.object ? (outer.path.empty() ? "" : outer.path + ".") + outer.key : outer.path + "[]";
+            }
+            open.push_back({event == json::parse_event_t::object_start, path, {}, {}});
+            break;
+        }
+        case json::parse_event_t::object_end:
+        case json::parse_event_t::array_end:
+            if (!open.empty()) open.pop_back();
+            break;
+        case json::parse_event_t::key: {
+            Open& o = open.back();
+            o.key = parsed.get<std::string>();
+            if (!o.keys.insert(o.key).second)
+                throw InputError(file + ": duplicate key '" + (o.path.empty() ? "" : o.path + ".") + o.key +
+                                 "' (only one value can apply; remove the other)");
+            break;
+        }
+        case json::parse_event_t::value:
+            break;
+        }
+        return true;
+    };
+    try {
+        return json::parse(text, check);
+    } catch (const json::exception& e) {
+        throw InputError(file + ": malformed JSON: " + e.what());
+    }
+}
+
+// The side that keeps the aspect ratio `other_from` : `side_from` when the
+// other side becomes `other_to` pixels: rounded to the nearest pixel, at least 1.
+int aspect_side(long long other_to, long long other_from, long long side_from) {
+    const double v = std::round(double(other_to) * double(side_from) / double(other_from));
+    return int(std::clamp(v, 1.0, double(INT_MAX)));
+}
+
+// Shared camera files name the field of view fov_deg; the scene file's key is fov.
+void rename_fov_deg(const std::string& file, const std::string& where, json& j) {
+    if (!j.is_object() || !j.contains("fov_deg")) return;
+    if (j.contains("fov")) fail(file, where + " gives both 'fov' and 'fov_deg'");
+    j["fov"] = j["fov_deg"];
+    j.erase("fov_deg");
+}
+
+// The scene file's "camera": a camera itself, or {"file": camera file, keys
+// overriding the file's}. The camera file, if any, is appended to `inputs`.
+CameraDesc parse_camera(const std::string& file, const json& j, std::vector<std::string>& inputs) {
     CameraDesc c;
     json src = j;
-    if (j.contains("file")) {
-        const fs::path cam = fs::path(file).parent_path() / get_string(file, j["file"], "camera.file");
-        std::ifstream in(cam);
-        if (!in) fail(file, "camera file '" + cam.string() + "' not found");
+    if (j.is_object() && j.contains("file")) {
+        const std::string cam = (fs::path(file).parent_path() / get_string(file, j["file"], "camera.file")).string();
         json base;
         try {
-            base = json::parse(in);
-        } catch (const json::exception& e) {
-            fail(file, "camera file '" + cam.string() + "' is malformed JSON: " + e.what());
+            base = parse_json_file(cam);
+        } catch (const InputError& e) {
+            fail(file, std::string("camera.file: ") + e.what());
         }
-        for (auto it = j.begin(); it != j.end(); ++it)
-            if (it.key() != "file") base[it.key()] = it.value();
+        inputs.push_back(cam);
+        if (!base.is_object()) fail(cam, "a camera file must hold a JSON object");
+        // Renamed before the overrides apply, so that an override's fov replaces the file's.
+        rename_fov_deg(cam, "the camera file", base);
+        base.erase("forward"), base.erase("note");  // target gives the direction; a note is a comment
+        json over = j;
+        over.erase("file");
+        rename_fov_deg(file, "camera", over);
+        // One side alone keeps the file's aspect ratio: with the file's other
+        // side the image would be stretched, since the field of view is fixed
+        // along one axis only. Both sides given are taken as they are. (A
+        // camera without a file has no aspect ratio to keep: there a side not
+        // given is the default 512.)
+        const bool w = over.contains("width"), h = over.contains("height");
+        if (w != h) {
+            const CameraDesc defaults;
+            const long long fw = base.contains("width") ? get_integer(cam, base["width"], "width", 1) : defaults.width;
+            const long long fh = base.contains("height") ? get_integer(cam, base["height"], "height", 1) : defaults.height;
+            if (w) over["height"] = aspect_side(get_integer(file, over["width"], "camera.width", 1), fw, fh);
+            else over["width"] = aspect_side(get_integer(file, over["height"], "camera.height", 1), fh, fw);
+        }
+        for (auto it = over.begin(); it != over.end(); ++it) base[it.key()] = it.value();
         src = base;
-        if (src.contains("fov_deg")) src["fov"] = src["fov_deg"], src.erase("fov_deg");
-        src.erase("forward"), src.erase("note");
     }
     check_keys(file, "camera", src, {"position", "target", "up", "fov", "fov_axis", "width", "height"});
     if (src.contains("position")) c.position = get_vec3(file, src["position"], "camera.position");
@@ -190,6 +308,25 @@ bool finite_number(const std::string& t, bool allow_overflow) {
     return res.ec == std::errc() && res.ptr == t.c_str() + t.size() && std::isfinite(v);
 }
 
+// Calls f(line number from 1, line without its end) for each line of `text`,
+// split as tinyobjloader splits them (at \n, \r\n or a lone \r), so that line
+// numbers in messages are the reader's.
+template <class F>
+void for_each_line(const std::string& text, F&& f) {
+    size_t line_no = 0, i = 0;
+    while (i < text.size()) {
+        const size_t end = std::min(text.find_first_of("\r\n", i), text.size());
+        f(++line_no, std::string_view(text).substr(i, end - i));
+        i = end + (end < text.size() && text[end] == '\r' && end + 1 < text.size() && text[end + 1] == '\n' ? 2 : 1);
+    }
+}
+
+// The line without the blanks that start it (the reader skips them too).
+std::string_view trim_start(std::string_view line) {
+    const size_t b = line.find_first_not_of(" \t");
+    return b == std::string_view::npos ? std::string_view() : line.substr(b);
+}
+
 // tinyobjloader reads an MTL number it cannot parse ("Kd nan 0 0", "Ns x")
 // as 0 too, which would silently turn a colour black or a lobe rough; so the
 // numeric lines of a material library are checked first.
@@ -197,103 +334,182 @@ void check_material_lines(const std::string& lib) {
     static const std::map<std::string, int> kNumbers = {{"Kd", 3}, {"Ks", 3}, {"Ke", 3}, {"Ka", 3}, {"Ns", 1},
                                                         {"Ni", 1}, {"Pr", 1}, {"Pm", 1}, {"d", 1},  {"Tr", 1},
                                                         {"illum", 1}};
-    std::ifstream in(lib, std::ios::binary);
-    if (!in) return;  // the reader reports a missing library
-    std::string line;
-    size_t line_no = 0;
-    while (std::getline(in, line)) {
-        ++line_no;
-        std::istringstream words(line);
+    if (!not_a_file(lib).empty()) return;  // the reader reports a missing library
+    for_each_line(read_file_text(lib), [&](size_t line_no, std::string_view line) {
+        std::istringstream words{std::string(line)};
         std::string key, t;
         words >> key;
         const auto it = kNumbers.find(key);
-        if (it == kNumbers.end()) continue;
+        if (it == kNumbers.end()) return;
         for (int k = 0; k < it->second && words >> t; ++k) {
             if (t[0] == '#' || (k == 0 && (t == "spectral" || t == "xyz"))) break;  // a comment; a non-RGB colour
             if (!finite_number(t, false))
                 throw InputError(lib + ": line " + std::to_string(line_no) + ": " + key + " value '" + t +
                                  "' is not a finite number");
         }
+    });
+}
+
+// What a face's index refers to, by its position in v/vt/vn.
+constexpr const char* kElement[3] = {"vertex", "texture coordinate", "normal"};
+constexpr const char* kElements[3] = {"vertices", "texture coordinates", "normals"};
+
+std::string count_of(long long n, int kind) { return std::to_string(n) + " " + (n == 1 ? kElement[kind] : kElements[kind]); }
+
+// An index of a face vertex that points past the elements defined before its
+// line. The OBJ reader resolves such (positive) indices against the whole
+// file, so it is checked once every line has been counted.
+struct ForwardIndex {
+    size_t line_no;
+    std::string vertex;  // the face vertex as written, e.g. 7/7/2
+    int kind;            // 0 vertex, 1 texture coordinate, 2 normal
+    long long index;     // LLONG_MAX when too large for any file
+};
+
+// Checks one face vertex (v, v/vt, v//vn or v/vt/vn) against the `defined`
+// vertices, texture coordinates and normals before its line. tinyobjloader
+// reads an index with atoi and drops a face whose index is out of range,
+// so a typo would silently leave a hole in the mesh.
+void check_face_vertex(const std::string& path, size_t line_no, std::string_view vertex, const long long defined[3],
+                       std::vector<ForwardIndex>& forward) {
+    const auto where = [&] { return path + ": line " + std::to_string(line_no) + ": "; };
+    const auto malformed = [&] {
+        return InputError(where() + "face vertex '" + std::string(vertex) +
+                          "' is not v, v/vt, v//vn or v/vt/vn with whole-number indices");
+    };
+    std::string_view part[3];
+    int parts = 0;
+    for (size_t b = 0;;) {
+        const size_t e = vertex.find('/', b);
+        if (parts == 3) throw malformed();
+        part[parts++] = vertex.substr(b, e == std::string_view::npos ? std::string_view::npos : e - b);
+        if (e == std::string_view::npos) break;
+        b = e + 1;
+    }
+    for (int kind = 0; kind < parts; ++kind) {
+        std::string_view t = part[kind];
+        if (t.empty()) {
+            if (kind == 1 && parts == 3) continue;  // v//vn: no texture coordinate
+            throw malformed();
+        }
+        const bool negative = t[0] == '-';
+        const std::string_view digits = t.substr(t[0] == '-' || t[0] == '+' ? 1 : 0);
+        if (digits.empty() || digits.find_first_not_of("0123456789") != std::string_view::npos) throw malformed();
+        long long index = 0;
+        const auto res = std::from_chars(digits.data(), digits.data() + digits.size(), index);
+        if (res.ec == std::errc::result_out_of_range) index = LLONG_MAX;
+        if (index == 0)
+            throw InputError(where() + "face vertex '" + std::string(vertex) + "' has " + kElement[kind] +
+                             " index 0 (OBJ indices count from 1, or back from -1 for the latest)");
+        if (negative) {
+            if (index > defined[kind])
+                throw InputError(where() + "face vertex '" + std::string(vertex) + "' references a missing " +
+                                 kElement[kind] + ": -" + std::string(digits) + " counts back past the " +
+                                 count_of(defined[kind], kind) + " defined before this line");
+        } else if (index > defined[kind]) {
+            forward.push_back({line_no, std::string(vertex), kind, index});
+        }
     }
 }
 
+// What the pre-pass of an OBJ found besides errors.
+struct ObjLines {
+    std::vector<std::string> libraries;  // mtllib names, relative to the OBJ's directory
+    size_t triangles = 0;                // what the faces triangulate to: corners - 2 each
+};
+
 // tinyobjloader reads a coordinate it cannot parse ("nan", "1,5", "x") as 0,
-// which would silently move a vertex or tilt a normal; so the vertex,
-// normal and texture-coordinate lines are checked first. Returns the material
-// libraries the OBJ names (mtllib lines, relative to its directory), collected
-// in the same pass, for check_material_lines().
-std::vector<std::string> check_vertex_lines(const std::string& path) {
-    std::vector<std::string> libraries;
-    std::ifstream in(path, std::ios::binary);
-    if (!in) return libraries;  // the reader reports unreadable files
-    std::string line;
-    size_t line_no = 0;
-    while (std::getline(in, line)) {
-        ++line_no;
-        if (line.rfind("mtllib", 0) == 0 && line.size() > 6 && (line[6] == ' ' || line[6] == '\t')) {
-            std::istringstream words(line.substr(6));
+// which would silently move a vertex or tilt a normal, and drops faces with
+// fewer than 3 vertices or an index out of range, which would silently leave
+// holes; so the vertex, normal, texture-coordinate and face lines are checked
+// first. Also collects the material libraries, for check_material_lines(), and
+// the triangle count, to catch faces the reader drops for other reasons.
+ObjLines check_obj_lines(const std::string& path) {
+    ObjLines found;
+    std::vector<std::string>& libraries = found.libraries;
+    if (!not_a_file(path).empty()) return found;  // the reader reports unreadable files
+    long long defined[3] = {0, 0, 0};  // vertices, texture coordinates, normals so far
+    std::vector<ForwardIndex> forward;
+    for_each_line(read_file_text(path), [&](size_t line_no, std::string_view line) {
+        line = trim_start(line);
+        const auto where = [&] { return path + ": line " + std::to_string(line_no) + ": "; };
+        const auto blank = [&](size_t i) { return i < line.size() && (line[i] == ' ' || line[i] == '\t'); };
+        if (line.rfind("mtllib", 0) == 0 && blank(6)) {
+            std::istringstream words{std::string(line.substr(6))};
             for (std::string name; words >> name;) libraries.push_back((fs::path(path).parent_path() / name).string());
-            continue;
+            return;
+        }
+        if (line.size() >= 2 && line[0] == 'f' && blank(1)) {
+            int corners = 0;
+            for (size_t i = 1;;) {
+                while (blank(i)) ++i;
+                if (i >= line.size()) break;
+                const size_t b = i;
+                while (i < line.size() && !blank(i)) ++i;
+                check_face_vertex(path, line_no, line.substr(b, i - b), defined, forward);
+                ++corners;
+            }
+            if (corners < 3)
+                throw InputError(where() + "a face needs at least 3 vertices, got " + std::to_string(corners));
+            found.triangles += size_t(corners - 2);
+            return;
         }
         // v x y z [colour], vn x y z, vt u [v [w]]: how many numbers are checked, and how many are required.
-        int start, count, required;
+        int start, count, required, kind_index;
         const char* kind;   // what the line describes
         const char* value;  // what one of its numbers is called
-        const auto blank = [&](size_t i) { return i < line.size() && (line[i] == ' ' || line[i] == '\t'); };
         if (line.size() >= 2 && line[0] == 'v' && blank(1))
-            start = 1, count = 3, required = 3, kind = "vertex", value = "vertex coordinate";
+            start = 1, count = 3, required = 3, kind = "vertex", value = "vertex coordinate", kind_index = 0;
         else if (line.size() >= 3 && line[0] == 'v' && line[1] == 'n' && blank(2))
-            start = 2, count = 3, required = 3, kind = "normal", value = "normal component";
+            start = 2, count = 3, required = 3, kind = "normal", value = "normal component", kind_index = 2;
         else if (line.size() >= 3 && line[0] == 'v' && line[1] == 't' && blank(2))
-            start = 2, count = 3, required = 1, kind = "texture coordinate line", value = "texture coordinate";
+            start = 2, count = 3, required = 1, kind = "texture coordinate line", value = "texture coordinate",
+            kind_index = 1;
         else
-            continue;
+            return;
+        ++defined[kind_index];
         const char* c = line.data() + start;
         const char* end = line.data() + line.size();
         for (int k = 0; k < count; ++k) {
             while (c < end && (*c == ' ' || *c == '\t')) ++c;
-            if (c == end || *c == '\r' || *c == '#') {
+            if (c == end || *c == '#') {
                 if (k >= required) break;
-                throw InputError(path + ": line " + std::to_string(line_no) + ": a " + kind + " needs " +
-                                 std::to_string(required) + (required == 1 ? " number" : " numbers"));
+                throw InputError(where() + "a " + kind + " needs " + std::to_string(required) +
+                                 (required == 1 ? " number" : " numbers"));
             }
             const char* tok = c;
-            while (c < end && *c != ' ' && *c != '\t' && *c != '\r') ++c;
+            while (c < end && *c != ' ' && *c != '\t') ++c;
             const std::string t(tok, c);
             // Out-of-range values (1e39) parse to inf below; the loader reports those with the element's number.
             if (!finite_number(t, true))
-                throw InputError(path + ": line " + std::to_string(line_no) + ": " + value + " '" + t +
-                                 "' is not a finite number");
+                throw InputError(where() + value + " '" + t + "' is not a finite number");
         }
-    }
-    return libraries;
-}
-
-// Why `file` cannot be read as a file (": file not found", ": not a file"), or "" if it can.
-std::string not_a_file(const std::string& file) {
-    if (fs::is_regular_file(file)) return "";
-    return fs::exists(file) ? ": not a file" : ": file not found";
+    });
+    for (const ForwardIndex& f : forward)
+        if (f.index > defined[f.kind])
+            throw InputError(path + ": line " + std::to_string(f.line_no) + ": face vertex '" + f.vertex +
+                             "' references a missing " + kElement[f.kind] + ": " +
+                             (f.index == LLONG_MAX ? std::string("an index that large") : std::to_string(f.index)) +
+                             " is past the " + count_of(defined[f.kind], f.kind) + " in the file");
+    return found;
 }
 }  // namespace
 
 // `mtl`: a material library read instead of the OBJ's own `mtllib` ("" = the
-// OBJ's own); its textures are then relative to it.
+// OBJ's own); its textures are then relative to it. The files read are
+// appended to `inputs` (if given).
 void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
-                   std::set<std::string>* used_overrides, const std::string& mtl = "") {
+                   std::set<std::string>* used_overrides, const std::string& mtl = "",
+                   std::vector<std::string>* inputs = nullptr) {
     if (const std::string why = not_a_file(path); !why.empty()) throw InputError(path + why);
-    const std::vector<std::string> libraries = check_vertex_lines(path);
+    const ObjLines lines = check_obj_lines(path);
+    const std::vector<std::string>& libraries = lines.libraries;
     tinyobj::ObjReaderConfig cfg;
     cfg.triangulate = true;
     cfg.vertex_color = false;
     cfg.mtl_search_path = fs::path(path).parent_path().string();
     tinyobj::ObjReader reader;
-    const auto read_text = [](const std::string& file) {
-        std::ifstream in(file, std::ios::binary);
-        std::string text(std::istreambuf_iterator<char>(in), {});
-        if (!in && !in.eof()) throw InputError(file + ": cannot read");
-        return text;
-    };
     if (const std::string why = mtl.empty() ? "" : not_a_file(mtl); !why.empty())
         throw InputError(scene_file + ": meshes[].mtl: " + mtl + why);
     for (const std::string& lib : mtl.empty() ? libraries : std::vector<std::string>{mtl})
@@ -304,9 +520,9 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     if (mtl.empty()) {
         parsed = reader.ParseFromFile(path, cfg);
     } else {
-        std::string obj = read_text(path);
+        std::string obj = read_file_text(path);
         if (obj.find("mtllib") == std::string::npos) obj = "mtllib given\n" + obj;  // an OBJ without one gets it too
-        parsed = reader.ParseFromString(obj, read_text(mtl), cfg);
+        parsed = reader.ParseFromString(obj, read_file_text(mtl), cfg);
     }
     if (!parsed) {
         std::string e = reader.Error();
@@ -318,9 +534,25 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     const std::string warn = reader.Warning();
     if (warn.find("not found") != std::string::npos && warn.find(".mtl") != std::string::npos)
         throw InputError(path + ": " + warn.substr(0, warn.find('\n')));
+    if (inputs) {
+        inputs->push_back(path);
+        // A library named but absent is reported above; of several, the reader takes the first it finds.
+        for (const std::string& lib : mtl.empty() ? libraries : std::vector<std::string>{mtl})
+            if (not_a_file(lib).empty()) inputs->push_back(lib);
+    }
     const auto& attrib = reader.GetAttrib();
     const auto& shapes = reader.GetShapes();
     const auto& mtls = reader.GetMaterials();
+    // The reader also drops, with a warning at most, polygons its ear clipping
+    // cannot cut and polygons using a vertex defined after the next g, o or
+    // usemtl line (where it triangulates the faces so far).
+    size_t triangles = 0;
+    for (const auto& sh : shapes) triangles += sh.mesh.num_face_vertices.size();
+    if (triangles != lines.triangles)
+        throw InputError(path + ": its faces make " + std::to_string(lines.triangles) +
+                         " triangles but the OBJ reader kept " + std::to_string(triangles) +
+                         ": it drops polygons of over 3 corners that it cannot triangulate (e.g. self-intersecting)"
+                         " or that use a vertex defined after a later g, o or usemtl line");
 
     const uint32_t base = uint32_t(materials.size());
     const fs::path dir = fs::path(mtl.empty() ? path : mtl).parent_path();  // textures are relative to the library
@@ -347,6 +579,9 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
                 overridden = true;
             }
         }
+        // Listed whenever it exists, even for materials that ignore Kd (mirrors,
+        // glass) and never open it: an extra input only makes the hash stricter.
+        if (inputs && !d.map_kd.empty() && not_a_file(d.map_kd).empty()) inputs->push_back(d.map_kd);
         Material m;
         m.name = d.name;
         m.emission = d.ke;
@@ -373,7 +608,10 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     for (const auto& sh : shapes) {
         const auto& ind = sh.mesh.indices;
         for (size_t f = 0; f < sh.mesh.num_face_vertices.size(); ++f) {
-            if (sh.mesh.num_face_vertices[f] != 3) continue;  // triangulated by the reader
+            // Triangulated by the reader; anything else would misalign every later face's indices.
+            if (sh.mesh.num_face_vertices[f] != 3)
+                throw InputError(path + ": face " + std::to_string(f) + " of '" + sh.name + "' has " +
+                                 std::to_string(sh.mesh.num_face_vertices[f]) + " corners after triangulation");
             const tinyobj::index_t* c = &ind[3 * f];
             bool has_n = true;
             Vec3 p[3], n[3];
@@ -451,14 +689,14 @@ SceneFile load_scene_file(const std::string& path) {
 }
 
 static SceneFile load_scene_file_impl(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw InputError(path + ": file not found");
-    json j;
-    try {
-        j = json::parse(in);
-    } catch (const json::exception& e) {
-        throw InputError(path + ": malformed JSON: " + e.what());
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) {
+        std::string hint;
+        if (fs::is_regular_file(fs::path(path) / "scene.json", ec))
+            hint = " (did you mean " + (fs::path(path) / "scene.json").string() + "?)";
+        throw InputError(path + ": is a directory, not a scene file" + hint);
     }
+    json j = parse_json_file(path);
     check_keys(path, "the scene", j, {"camera", "meshes", "materials", "render", "description"});
     if (!j.contains("camera")) fail(path, "missing 'camera'");
     if (!j.contains("meshes") || !j["meshes"].is_array() || j["meshes"].empty())
@@ -466,7 +704,8 @@ static SceneFile load_scene_file_impl(const std::string& path) {
 
     SceneFile sf;
     sf.path = path;
-    const CameraDesc cd = parse_camera(path, j["camera"]);
+    std::vector<std::string> inputs{path};
+    const CameraDesc cd = parse_camera(path, j["camera"], inputs);
     Camera camera;
     try {
         camera = Camera(cd);
@@ -493,16 +732,26 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     std::set<std::string> used;
     const fs::path dir = fs::path(path).parent_path();
     for (const auto& m : j["meshes"]) {
+        const size_t first = mesh.size();
+        std::string file;
         if (m.is_string()) {
-            load_obj_impl((dir / m.get<std::string>()).string(), Mat4(1.f), mesh, materials, &overrides, path, &used);
-            continue;
+            file = (dir / m.get<std::string>()).string();
+            load_obj_impl(file, Mat4(1.f), mesh, materials, &overrides, path, &used, "", &inputs);
+        } else {
+            check_keys(path, "meshes[]", m, {"file", "transform", "mtl"});
+            if (!m.contains("file") || !m["file"].is_string()) fail(path, "every mesh needs a 'file'");
+            if (m.contains("mtl") && !m["mtl"].is_string()) fail(path, "'meshes[].mtl' must be a string");
+            const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
+            const std::string mtl = m.contains("mtl") ? (dir / m["mtl"].get<std::string>()).string() : std::string();
+            file = (dir / m["file"].get<std::string>()).string();
+            load_obj_impl(file, xf, mesh, materials, &overrides, path, &used, mtl, &inputs);
         }
-        check_keys(path, "meshes[]", m, {"file", "transform", "mtl"});
-        if (!m.contains("file") || !m["file"].is_string()) fail(path, "every mesh needs a 'file'");
-        if (m.contains("mtl") && !m["mtl"].is_string()) fail(path, "'meshes[].mtl' must be a string");
-        const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
-        const std::string mtl = m.contains("mtl") ? (dir / m["mtl"].get<std::string>()).string() : std::string();
-        load_obj_impl((dir / m["file"].get<std::string>()).string(), xf, mesh, materials, &overrides, path, &used, mtl);
+        MeshStats ms{file, mesh.size() - first, 0};
+        for (size_t t = first; t < mesh.size(); ++t) {
+            const Vec3* p = &mesh.positions[3 * t];
+            ms.degenerate_skipped += zero_area_triangle(p[0], p[1], p[2]);
+        }
+        sf.meshes.push_back(std::move(ms));
     }
     for (const auto& [name, o] : overrides)
         if (!used.count(name)) fail(path, "materials: no mesh has a material named '" + name + "'");
@@ -530,7 +779,58 @@ static SceneFile load_scene_file_impl(const std::string& path) {
         }
     }
     sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
+    // A file used twice (one OBJ under two transforms, a shared texture) is hashed once.
+    std::set<std::string> seen;
+    for (std::string& f : inputs)
+        if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
+    sf.content_hash = scene_content_hash(path, sf.inputs);
     return sf;
+}
+
+std::string scene_content_hash(const std::string& scene_path, const std::vector<std::string>& inputs) {
+    uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64 offset basis
+    const auto add = [&h](const void* data, size_t n) {
+        const auto* b = static_cast<const unsigned char*>(data);
+        for (size_t i = 0; i < n; ++i) h = (h ^ b[i]) * 0x100000001b3ull;  // FNV-1a 64 prime
+    };
+    // Names relative to the scene, so that a copy of its folder elsewhere hashes the same.
+    const fs::path base = fs::absolute(fs::path(scene_path)).parent_path().lexically_normal();
+    for (const std::string& file : inputs) {
+        const fs::path abs = fs::absolute(fs::path(file)).lexically_normal();
+        fs::path rel = abs.lexically_relative(base);
+        const std::string name = (rel.empty() ? abs : rel).generic_string();
+        const std::string bytes = read_file_text(file);
+        // The terminating zero and the size keep the boundaries between names and contents unambiguous.
+        add(name.c_str(), name.size() + 1);
+        unsigned char size[8];
+        for (int i = 0; i < 8; ++i) size[i] = uint8_t(uint64_t(bytes.size()) >> (8 * i));
+        add(size, 8);
+        add(bytes.data(), bytes.size());
+    }
+    return fmt::format("{:016x}", h);
+}
+
+void set_resolution(SceneFile& sf, int width, int height) {
+    if (!sf.scene) throw ParameterError("set_resolution: no scene is loaded");
+    if (width < 0 || height < 0 || (width == 0 && height == 0))
+        throw ParameterError(fmt::format("resolution {}x{}: give a positive width and height, or one of them and 0 "
+                                         "for the other to keep the camera's aspect ratio",
+                                         width, height));
+    CameraDesc d = sf.scene->camera().desc();
+    if (width == 0) width = aspect_side(height, d.height, d.width);
+    if (height == 0) height = aspect_side(width, d.width, d.height);
+    d.width = width, d.height = height;
+    sf.scene->set_camera(Camera(d));
+}
+
+void set_fov(SceneFile& sf, float fov_deg, char axis) {
+    if (!sf.scene) throw ParameterError("set_fov: no scene is loaded");
+    if (axis != 0 && axis != 'x' && axis != 'y')
+        throw ParameterError(std::string("fov axis '") + axis + "' must be 'x' (horizontal) or 'y' (vertical)");
+    CameraDesc d = sf.scene->camera().desc();
+    d.fov_deg = fov_deg;
+    if (axis) d.fov_axis = axis;
+    sf.scene->set_camera(Camera(d));  // rejects an angle outside (0, 180)
 }
 
 }  // namespace gdr

@@ -5,9 +5,12 @@
 
 #include <unistd.h>
 
+#include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <sstream>
 #include <string>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -48,6 +51,28 @@ std::vector<Material> one_material(Color emission = Color(0.f)) {
     return {Material{"m", make_lambertian(make_constant_texture(Color(0.5f))), emission}};
 }
 
+// A fresh directory under the system's temporary one, removed with the object.
+struct TempDir {
+    std::filesystem::path path;
+    explicit TempDir(const std::string& name)
+        : path(std::filesystem::temp_directory_path() / ("gdr-test-" + name + "-" + std::to_string(getpid()))) {
+        std::filesystem::remove_all(path);
+        std::filesystem::create_directories(path);
+    }
+    ~TempDir() { std::filesystem::remove_all(path); }
+    // Writes `text` to the file `name` in it; returns its path.
+    std::string write(const std::string& name, const std::string& text) const {
+        std::ofstream(path / name, std::ios::binary) << text;
+        return (path / name).string();
+    }
+    std::string operator/(const std::string& name) const { return (path / name).string(); }
+};
+
+// The angle in degrees between two directions.
+float angle_deg(const Vec3& a, const Vec3& b) {
+    return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.f, 1.f)) * 180.f / kPi;
+}
+
 }  // namespace
 
 TEST_CASE("scene file: a missing file names the path", "[scene][errors]") {
@@ -76,9 +101,9 @@ TEST_CASE("scene file: a missing mesh names the OBJ path", "[scene][errors]") {
     CHECK_THAT(msg, Contains("no-such-mesh.obj") && Contains("not found"));
 }
 
-TEST_CASE("OBJ: a malformed face line is an error naming the file", "[scene][errors]") {
+TEST_CASE("OBJ: a malformed face line is an error naming the file, the line and the vertex", "[scene][errors]") {
     const std::string msg = error_of([] { load_scene_file(kBad + "malformed-obj.json"); });
-    CHECK_THAT(msg, Contains("malformed.obj") && Contains("cannot parse OBJ"));
+    CHECK_THAT(msg, Contains("malformed.obj") && Contains("line 5") && Contains("'x'"));
 }
 
 TEST_CASE("OBJ: a missing MTL library is an error, not grey surfaces", "[scene][errors]") {
@@ -434,4 +459,251 @@ TEST_CASE("OBJ: bad normals and texture coordinates are errors naming the file, 
     // Well-formed attributes, including a one-number vt, load.
     CHECK(load_obj_text("fine", "vt 0.25\nvn 0 0 1\nf 1/1/1 2/1/1 3/1/1\n").empty());
     fs::remove_all(dir);
+}
+
+TEST_CASE("OBJ: a face index out of range is an error naming file, line and vertex, not a dropped face", "[scene][errors]") {
+    // The reader would drop the quad and load the other 10 triangles of the box.
+    const std::string msg = error_of([] { load_scene_file(kBad + "face-index-obj.json"); });
+    CHECK_THAT(msg, Contains("face-index.obj") && Contains("line 15") && Contains("'999'") && Contains("missing vertex"));
+    TriangleMesh mesh;
+    std::vector<Material> mats;
+    CHECK_THROWS_AS(load_obj(kBad + "face-index.obj", Mat4(1.f), mesh, mats), InputError);
+
+    TempDir dir("face-index");
+    const auto load = [&](const std::string& name, const std::string& faces) {
+        dir.write(name + ".obj", "v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nvt 0 0\nvn 0 0 1\n" + faces);
+        dir.write(name + ".json", R"({"camera": {"width": 4, "height": 4}, "meshes": [")" + name + R"(.obj"]})");
+        return error_of([&] { load_scene_file(dir / (name + ".json")); });
+    };
+    CHECK_THAT(load("high", "f 1 2 3\nf 1 2 999\n"),
+               Contains("high.obj") && Contains("line 7") && Contains("'999'") && Contains("3 vertices"));
+    CHECK_THAT(load("low", "f -999 2 3\n"),
+               Contains("low.obj") && Contains("line 6") && Contains("'-999'") && Contains("missing vertex"));
+    CHECK_THAT(load("zero", "f 0 1 2\n"), Contains("zero.obj") && Contains("line 6") && Contains("index 0"));
+    CHECK_THAT(load("two", "f 1 2 3\nf 1 2\n"), Contains("two.obj") && Contains("line 7") && Contains("at least 3"));
+    CHECK_THAT(load("none", "f \n"), Contains("none.obj") && Contains("line 6") && Contains("got 0"));
+    CHECK_THAT(load("uv", "f 1/999/1 2/1/1 3/1/1\n"),
+               Contains("uv.obj") && Contains("line 6") && Contains("'1/999/1'") && Contains("missing texture coordinate"));
+    CHECK_THAT(load("normal", "f 1//1 2//-2 3//1\n"),
+               Contains("normal.obj") && Contains("line 6") && Contains("'2//-2'") && Contains("missing normal"));
+    // atoi would read these as 3 and 1 and carry on.
+    CHECK_THAT(load("suffix", "f 1 2 3x\n"), Contains("suffix.obj") && Contains("line 6") && Contains("'3x'"));
+    CHECK_THAT(load("fraction", "f 1.5 2 3\n"), Contains("fraction.obj") && Contains("'1.5'"));
+    CHECK_THAT(load("slashes", "f 1/1/1/1 2 3\n"), Contains("slashes.obj") && Contains("'1/1/1/1'"));
+    CHECK_THAT(load("huge", "f 1 2 99999999999999999999\n"), Contains("huge.obj") && Contains("missing vertex"));
+    // A negative index counts back from the latest vertex *so far*: -3 on
+    // line 6 is vertex 1, but before the third vertex it is out of range.
+    CHECK(load("back", "f -3 -2 -1\n").empty());
+    // A positive index may name a later vertex, but the reader triangulates
+    // a quad at the next group, before vertex 4 exists, and drops it.
+    CHECK_THAT(load("group", "f 1 2 3\nf 1 2 3 4\ng other\nv 0 1 -2\n"),
+               Contains("group.obj") && Contains("make 3 triangles") && Contains("kept 1"));
+    CHECK_THAT(load("early", "f 1 2 3\nv 0 0 -3\nf -5 -4 -3\n"), Contains("early.obj") && Contains("line 8") &&
+                                                                     Contains("'-5'") && Contains("4 vertices"));
+}
+
+TEST_CASE("OBJ: relative indices and faces before their vertices load as the reader resolves them", "[scene]") {
+    TriangleMesh mesh;
+    std::vector<Material> mats;
+    load_obj(kBad + "relative-faces.obj", Mat4(1.f), mesh, mats);
+    REQUIRE(mesh.size() == 3);
+    // Face 1 (4 5 6, before any vertex) and face 3 (-3 -2 -1 after six) are
+    // the z = -3 triangle; face 2 (-3 -2 -1 after three) the z = -2 one.
+    CHECK(mesh.positions[0] == Vec3(-1, -1, -3));
+    CHECK(mesh.positions[3] == Vec3(-1, -1, -2));
+    CHECK(mesh.positions[5] == Vec3(0, 1, -2));
+    CHECK(mesh.positions[6] == Vec3(-1, -1, -3));
+    CHECK(mesh.positions[8] == Vec3(0, 1, -3));
+    CHECK(mesh.normals[3] == Vec3(0, 0, 1));  // vn -1 of the second face
+}
+
+TEST_CASE("scene file: per-mesh triangle counts show how much of each OBJ was read", "[scene]") {
+    const SceneFile sf = load_scene_file(kBad + "mesh-counts.json");
+    REQUIRE(sf.meshes.size() == 3);
+    CHECK(sf.meshes[0].file == kBad + "triangle.obj");
+    CHECK(sf.meshes[1].file == kBad + "degenerate.obj");
+    CHECK(sf.meshes[2].file == kBad + "relative-faces.obj");
+    CHECK(sf.meshes[0].triangles == 1);
+    CHECK(sf.meshes[0].degenerate_skipped == 0);
+    CHECK(sf.meshes[1].triangles == 3);
+    CHECK(sf.meshes[1].degenerate_skipped == 2);
+    CHECK(sf.meshes[2].triangles == 3);
+    CHECK(sf.meshes[2].degenerate_skipped == 0);
+    CHECK(sf.scene->stats().triangles == 5);
+    CHECK(sf.scene->stats().degenerate_skipped == 2);
+    // The Cornell box's one OBJ holds 36 triangles, all kept.
+    const SceneFile box = load_scene_file(GDR_SOURCE_DIR "/scenes/cornell-box/scene.json");
+    REQUIRE(box.meshes.size() == 1);
+    CHECK(box.meshes[0].file == GDR_SOURCE_DIR "/scenes/cornell-box/CornellBox-Original.obj");
+    CHECK(box.meshes[0].triangles == 36);
+    CHECK(box.meshes[0].degenerate_skipped == 0);
+}
+
+TEST_CASE("scene file: a key given twice is an error naming the file and the key", "[scene][errors]") {
+    CHECK_THAT(error_of([] { load_scene_file(kBad + "duplicate-key.json"); }),
+               Contains("duplicate-key.json") && Contains("'render.spp'") && Contains("duplicate key"));
+    TempDir dir("duplicate-key");
+    dir.write("tri.obj", "v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nf 1 2 3\n");
+    const auto load = [&](const std::string& name, const std::string& text) {
+        dir.write(name, text);
+        return error_of([&] { load_scene_file(dir / name); });
+    };
+    CHECK_THAT(load("camera.json", R"({"camera": {"width": 4}, "camera": {"width": 8}, "meshes": ["tri.obj"]})"),
+               Contains("camera.json") && Contains("'camera'"));
+    CHECK_THAT(load("nested.json", R"({"camera": {"width": 4, "height": 4},
+                 "meshes": [{"file": "tri.obj"}, {"file": "tri.obj", "transform": {"scale": 2, "scale": 3}}]})"),
+               Contains("nested.json") && Contains("'meshes[].transform.scale'"));
+    CHECK_THAT(load("params.json", R"({"camera": {"width": 4, "height": 4}, "meshes": ["tri.obj"],
+                 "render": {"params": {"max_depth": 3, "max_depth": 5}}})"),
+               Contains("'render.params.max_depth'"));
+    // In a camera file, named with the scene file that reads it.
+    dir.write("cam.json", R"({"position": [0, 0, 0], "target": [0, 0, -1], "width": 8, "height": 8, "width": 4})");
+    CHECK_THAT(load("camfile.json", R"({"camera": {"file": "cam.json"}, "meshes": ["tri.obj"]})"),
+               Contains("camfile.json") && Contains("cam.json") && Contains("'width'") && Contains("duplicate key"));
+    // The same key in different objects is no duplicate.
+    CHECK(load("fine.json", R"({"camera": {"width": 4, "height": 4}, "meshes": [{"file": "tri.obj"}, {"file": "tri.obj"}],
+                 "render": {"seed": 1, "params": {"seed": 2}}})").empty());
+}
+
+TEST_CASE("scene file: a directory given as the scene is an error saying so", "[scene][errors]") {
+    CHECK_THAT(error_of([] { load_scene_file(kBad); }), Contains(kBad) && Contains("is a directory"));
+    CHECK_THAT(error_of([] { load_scene_file(kBad + "directory.obj"); }),
+               Contains("directory.obj") && Contains("is a directory"));
+    // One holding a scene.json points to it.
+    const std::string box = GDR_SOURCE_DIR "/scenes/cornell-box/";
+    CHECK_THAT(error_of([&] { load_scene_file(box); }), Contains("is a directory") && Contains(box + "scene.json"));
+    // A camera file that is a directory, too.
+    TempDir dir("directory-camera");
+    dir.write("tri.obj", "v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nf 1 2 3\n");
+    std::filesystem::create_directories(dir.path / "cam.json");
+    dir.write("scene.json", R"({"camera": {"file": "cam.json"}, "meshes": ["tri.obj"]})");
+    CHECK_THAT(error_of([&] { load_scene_file(dir / "scene.json"); }),
+               Contains("scene.json") && Contains("cam.json") && Contains("directory"));
+}
+
+TEST_CASE("scene file: overriding one side of a camera file keeps the file's aspect ratio", "[scene]") {
+    TempDir dir("camera-aspect");
+    dir.write("tri.obj", "v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nf 1 2 3\n");
+    // As the shared scenes write them: fov_deg, a forward direction and a note.
+    dir.write("cam.json", R"({"position": [0, 0, 0], "forward": [0, 0, -1], "target": [0, 0, -1], "up": [0, 1, 0],
+                             "fov_deg": 40, "fov_axis": "x", "width": 400, "height": 300, "note": "text"})");
+    const auto camera = [&](const std::string& overrides) {
+        dir.write("scene.json", R"({"camera": {"file": "cam.json")" + overrides + R"(}, "meshes": ["tri.obj"]})");
+        return load_scene_file(dir / "scene.json").scene->camera().desc();
+    };
+    const auto size = [](const CameraDesc& d) { return std::to_string(d.width) + "x" + std::to_string(d.height); };
+    CHECK(size(camera("")) == "400x300");
+    CHECK(size(camera(R"(, "width": 200)")) == "200x150");
+    CHECK(size(camera(R"(, "height": 30)")) == "40x30");
+    CHECK(size(camera(R"(, "width": 100, "height": 100)")) == "100x100");  // both: as given
+    CHECK(size(camera(R"(, "width": 201)")) == "201x151");                 // 150.75 rounds up
+    CHECK(size(camera(R"(, "width": 1)")) == "1x1");                       // 0.75: at least 1
+    CHECK(camera(R"(, "width": 200)").fov_deg == 40.f);
+    // An override's fov replaces the file's fov_deg.
+    CHECK(camera(R"(, "fov": 25)").fov_deg == 25.f);
+    CHECK(camera(R"(, "fov": 25)").fov_axis == 'x');
+    // A camera without a file has no aspect ratio to keep: the other side is the default.
+    dir.write("plain.json", R"({"camera": {"width": 200}, "meshes": ["tri.obj"]})");
+    CHECK(load_scene_file(dir / "plain.json").scene->camera().height() == 512);
+    // Bad values are still named.
+    dir.write("scene.json", R"({"camera": {"file": "cam.json", "width": 0}, "meshes": ["tri.obj"]})");
+    CHECK_THAT(error_of([&] { load_scene_file(dir / "scene.json"); }), Contains("camera.width"));
+    dir.write("cam.json", R"({"fov": 30, "fov_deg": 40})");
+    dir.write("scene.json", R"({"camera": {"file": "cam.json"}, "meshes": ["tri.obj"]})");
+    CHECK_THAT(error_of([&] { load_scene_file(dir / "scene.json"); }),
+               Contains("cam.json") && Contains("'fov'") && Contains("'fov_deg'"));
+}
+
+TEST_CASE("scene file: set_resolution and set_fov rebuild the camera around the same view", "[scene]") {
+    SceneFile sf = load_scene_file(GDR_SOURCE_DIR "/tests/scenes/emitter-wall/scene.json");  // 10x8, 60 degrees in y
+    const Camera& cam = sf.scene->camera();
+    const Vec3 forward = cam.forward();
+    const auto top = [&] { return cam.generate_ray(Vec2(0.5f * float(cam.width()), 0.f)).d; };
+    const auto left = [&] { return cam.generate_ray(Vec2(0.f, 0.5f * float(cam.height()))).d; };
+    REQUIRE(angle_deg(top(), forward) == Approx(30.f));
+    set_resolution(sf, 20, 0);  // a height of 0 keeps the aspect ratio
+    CHECK(cam.width() == 20);
+    CHECK(cam.height() == 16);
+    CHECK(angle_deg(top(), forward) == Approx(30.f));  // the vertical field of view is kept
+    CHECK(glm::length(cam.forward() - forward) < 1e-6f);
+    set_resolution(sf, 0, 4);
+    CHECK(cam.width() == 5);
+    CHECK(cam.height() == 4);
+    set_resolution(sf, 30, 10);  // both: as given, wider at the same vertical angle
+    CHECK(cam.width() == 30);
+    CHECK(cam.height() == 10);
+    CHECK(angle_deg(top(), forward) == Approx(30.f));
+    CHECK(angle_deg(left(), forward) > 30.f);
+    CHECK_THROWS_AS(set_resolution(sf, -1, 10), ParameterError);
+    CHECK_THROWS_AS(set_resolution(sf, 0, 0), ParameterError);
+    CHECK_THROWS_AS(set_resolution(sf, 70000, 10), ParameterError);
+    CHECK(cam.width() == 30);  // a rejected resolution changes nothing
+    // Field of view, along the camera's own axis or the one given.
+    set_fov(sf, 40.f);
+    CHECK(cam.desc().fov_axis == 'y');
+    CHECK(angle_deg(top(), forward) == Approx(20.f));
+    set_fov(sf, 50.f, 'x');
+    CHECK(angle_deg(left(), forward) == Approx(25.f));
+    CHECK(cam.width() == 30);
+    CHECK(cam.height() == 10);
+    CHECK_THROWS_AS(set_fov(sf, 180.f), ParameterError);
+    CHECK_THROWS_AS(set_fov(sf, 0.f), ParameterError);
+    CHECK_THROWS_AS(set_fov(sf, 30.f, 'z'), ParameterError);
+    CHECK(angle_deg(left(), forward) == Approx(25.f));
+}
+
+TEST_CASE("scene file: the content hash covers every file read, wherever the scene lies", "[scene]") {
+    // A scene reading a camera file, an OBJ, its MTL and a texture, in two places.
+    const auto make = [](const TempDir& dir) {
+        dir.write("scene.json", R"({"camera": {"file": "cam.json"}, "meshes": ["quad.obj", "quad.obj"]})");
+        dir.write("cam.json", R"({"position": [0, 0, 0], "target": [0, 0, -1], "width": 4, "height": 4})");
+        dir.write("quad.obj", "mtllib quad.mtl\nv -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nvt 0 0\nusemtl wall\nf 1/1 2/1 3/1\n");
+        dir.write("quad.mtl", "newmtl wall\nKd 0.5 0.5 0.5\nmap_Kd tex.ppm\n");
+        dir.write("tex.ppm", std::string("P6\n2 2\n255\n") + std::string(12, char(200)));
+    };
+    TempDir a("hash-a"), b("hash-b");
+    make(a), make(b);
+    const SceneFile sa = load_scene_file(a / "scene.json");
+    // Each file once, in the order read.
+    CHECK(sa.inputs ==
+          std::vector<std::string>{a / "scene.json", a / "cam.json", a / "quad.obj", a / "quad.mtl", a / "tex.ppm"});
+    REQUIRE(sa.content_hash.size() == 16);
+    CHECK(sa.content_hash.find_first_not_of("0123456789abcdef") == std::string::npos);
+    CHECK(load_scene_file(a / "scene.json").content_hash == sa.content_hash);
+    CHECK(load_scene_file(b / "scene.json").content_hash == sa.content_hash);
+    // One byte of any input changes it.
+    const auto changed = [&](const std::string& file, const std::string& from, const std::string& to) {
+        std::ifstream in(b / file, std::ios::binary);
+        std::string text((std::istreambuf_iterator<char>(in)), {});
+        const std::string original = text;
+        REQUIRE(text.find(from) != std::string::npos);
+        text.replace(text.find(from), from.size(), to);
+        b.write(file, text);
+        const std::string h = load_scene_file(b / "scene.json").content_hash;
+        b.write(file, original);
+        return h != sa.content_hash;
+    };
+    CHECK(changed("quad.mtl", "Kd 0.5", "Kd 0.6"));
+    CHECK(changed("tex.ppm", std::string(1, char(200)), std::string(1, char(201))));
+    CHECK(changed("cam.json", "\"width\": 4", "\"width\": 8"));
+    CHECK(changed("quad.obj", "v 0 1 -2", "v 0 2 -2"));
+    CHECK(changed("scene.json", "\"quad.obj\"]", "\"./quad.obj\"]"));
+    CHECK(load_scene_file(b / "scene.json").content_hash == sa.content_hash);
+    // A bundled scene: the OBJ's own library is an input too.
+    const std::string wall = GDR_SOURCE_DIR "/tests/scenes/emitter-wall/";
+    CHECK(load_scene_file(wall + "scene.json").inputs ==
+          std::vector<std::string>{wall + "scene.json", wall + "wall.obj", wall + "wall.mtl"});
+    // The documented layout, so stored hashes stay comparable: FNV-1a 64 over
+    // each file's relative name, a zero byte, its size (8 bytes, little-endian) and its bytes.
+    a.write("x.txt", "abc");
+    uint64_t h = 0xcbf29ce484222325ull;
+    const std::string bytes = std::string("x.txt") + '\0' + std::string("\3\0\0\0\0\0\0\0abc", 11);
+    for (unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
+    std::ostringstream hex;
+    hex << std::hex;
+    hex.width(16);
+    hex.fill('0');
+    hex << h;
+    CHECK(scene_content_hash(a / "scene.json", {a / "x.txt"}) == hex.str());
+    CHECK_THROWS_AS(scene_content_hash(a / "scene.json", {a / "no-such-file"}), InputError);
 }

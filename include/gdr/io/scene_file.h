@@ -4,7 +4,8 @@
 //   {
 //     "camera": {"position": [0,1,3.5], "target": [0,1,0], "up": [0,1,0],
 //                "fov": 45, "fov_axis": "y", "width": 512, "height": 512},
-//        (or {"file": "camera.json", "width": 256} to read a camera.json and override keys)
+//        (or {"file": "camera.json", "width": 256} to read a camera.json and override keys;
+//         one of width/height alone keeps the camera file's aspect ratio)
 //     "meshes": [{"file": "box.obj",
 //                 "transform": {"scale": 1, "rotate": [0,1,0,90], "translate": [0,0,0]}}],
 //        (transform may instead be {"matrix": [16 numbers, row-major]})
@@ -13,8 +14,10 @@
 //   }
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "gdr/core/params.h"
 #include "gdr/scene/scene.h"
@@ -29,16 +32,51 @@ struct RenderDefaults {
     Params params{"scene file"};    ///< Integrator parameters.
 };
 
+/// What one entry of a scene file's `meshes` contributed, so that a truncated or
+/// partly unreadable mesh shows in the load report instead of passing unnoticed.
+struct MeshStats {
+    std::string file;               ///< The OBJ as opened: the scene file's directory joined with its name.
+    size_t triangles = 0;           ///< Triangles read from it (polygons triangulated), zero-area ones included.
+    size_t degenerate_skipped = 0;  ///< Of those, zero-area triangles the Scene dropped.
+};
+
 /// A loaded scene file.
 struct SceneFile {
     std::unique_ptr<Scene> scene;  ///< The scene, ready to render.
     RenderDefaults defaults;       ///< Render settings from the file.
     std::string path;              ///< The file it came from.
+    std::vector<MeshStats> meshes; ///< One per `meshes` entry, in the file's order.
+    /// Every file the scene read (scene file first, then camera file, OBJs, MTL
+    /// libraries, textures), each once, in the order first read; paths as opened.
+    std::vector<std::string> inputs;
+    /// scene_content_hash(path, inputs): 16 hex digits that change with any byte
+    /// or name of any input, e.g. to refuse resuming a render of an edited scene.
+    std::string content_hash;
 };
 
-/// Loads a JSON scene file; throws InputError naming the file (and key) when it
-/// is missing, malformed, names unknown keys or references missing meshes.
+/// Loads a JSON scene file; throws InputError naming the file (and key, line)
+/// when it is missing, a directory, malformed, gives a key twice, names unknown
+/// keys or references missing or malformed meshes.
 SceneFile load_scene_file(const std::string& path);
+
+/// FNV-1a 64 hash, as 16 lowercase hex digits, of the files `inputs` in the given
+/// order: each one's path relative to the directory of `scene_path`, its size
+/// and its bytes. A copy of the whole scene elsewhere hashes the same. Throws
+/// InputError naming a file that cannot be read.
+std::string scene_content_hash(const std::string& scene_path, const std::vector<std::string>& inputs);
+
+/// Rebuilds the scene's camera at `width` x `height` pixels, keeping its position,
+/// orientation and field of view along its fov_axis. 0 for one side keeps the
+/// camera's aspect ratio (that side rounded to the nearest pixel, at least 1).
+/// Throws ParameterError for a negative side, both sides 0, or a resolution the
+/// camera rejects.
+void set_resolution(SceneFile& sf, int width, int height);
+
+/// Rebuilds the scene's camera with a full field of view of `fov_deg` degrees,
+/// in (0, 180), along `axis`: 'x' horizontal, 'y' vertical, 0 the camera's own
+/// fov_axis. The resolution is kept. Throws ParameterError for an angle or axis
+/// out of range.
+void set_fov(SceneFile& sf, float fov_deg, char axis = 0);
 
 /// Loads one OBJ (+ MTL) into `mesh` and `materials`, applying a 4x4 transform;
 /// material overrides replace MTL materials by name. Throws InputError naming the file.

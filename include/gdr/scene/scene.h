@@ -66,6 +66,13 @@ struct LightSample {
     uint32_t prim = 0;   ///< Emitting triangle.
 };
 
+/// True if a triangle has no area a ray can hit (zero, or overflowing float):
+/// the Scene drops such triangles, and loaders count them with this same test.
+inline bool zero_area_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2) {
+    const float len = glm::length(glm::cross(p1 - p0, p2 - p0));
+    return !(len > 0.f) || !std::isfinite(len);
+}
+
 /// Counters gathered while loading (reported by the CLI).
 struct SceneStats {
     size_t triangles = 0;           ///< Triangles in the BVH.
@@ -177,6 +184,10 @@ public:
 
     /// The Embree scene handle (RTCScene), for benchmarks that cast bare rays.
     void* embree_scene() const { return rtc_scene_; }
+    /// Replaces the camera (e.g. a resolution or field of view chosen after
+    /// loading); the geometry does not depend on it. Not synchronised: set it
+    /// only while no render runs.
+    void set_camera(const Camera& camera) { camera_ = camera; }
     /// Installs an observer of every traced ray (nullptr removes it). Not
     /// synchronised: set it only while no render runs. Costs one branch per ray.
     void set_ray_observer(RayObserver* observer) { observer_ = observer; }
