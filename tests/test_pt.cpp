@@ -569,12 +569,20 @@ TEST_CASE("tiled integrators: time budgets and cancellation end on whole passes"
     CHECK(timed.spp >= 1);
     CHECK(fb.metadata().at("spp") == std::to_string(timed.spp));
     CHECK(timed.samples == uint64_t(timed.spp) * 80);
+    // Cancelled before any pass finished: there is no image to return.
     std::atomic<bool> cancel{true};
     RenderSettings sc;
     sc.spp = 100;
     sc.cancel = &cancel;
-    const RenderStats cancelled = pt->render(*sf.scene, sc, fb, {});
-    CHECK(cancelled.spp == 16);  // the first pass always completes
+    CHECK_THROWS_AS(pt->render(*sf.scene, sc, fb, {}), Interrupted);
+    // Cancelled once the first pass (one sample per pixel, to measure the
+    // rate) is done: the render ends on it.
+    cancel = false;
+    const RenderStats cancelled = pt->render(*sf.scene, sc, fb, [&](const Progress& p) {
+        if (p.samples >= 80) cancel = true;
+    });
+    CHECK(cancelled.spp == 1);
+    CHECK(fb.metadata().at("spp") == "1");
     CHECK(fb.get("color").rgb(0, 0) == Color(3.f, 2.f, 0.5f));
     RenderSettings bad;
     bad.spp = 0;

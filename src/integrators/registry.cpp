@@ -33,8 +33,18 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
     if (into.width() != other.width() || into.height() != other.height())
         throw ParameterError("merge: renders differ in resolution");
     const long long na = spp_of(into, "first"), nb = spp_of(other, "second");
+    // Reconstructions are not means of samples: update_merged() recomputes
+    // them, so a render whose reconstructions were skipped (an aborted
+    // render) still merges.
+    const auto derived = [](const std::string& name) { return name.rfind("reconstruction", 0) == 0; };
     for (const auto& name : into.names())
-        if (!other.has(name)) throw ParameterError("merge: layer '" + name + "' is missing from the second render");
+        if (!other.has(name) && !derived(name))
+            throw ParameterError("merge: layer '" + name + "' is missing from the second render");
+    for (const auto& name : other.names())
+        if (!into.has(name) && !derived(name))
+            throw ParameterError("merge: layer '" + name + "' is missing from the first render");
+    for (const auto& name : std::vector<std::string>(into.names()))
+        if (derived(name) && !other.has(name)) into.remove(name);
     const double n = double(na + nb);
     // Variances first: pooling needs both means before they are overwritten.
     for (const auto& name : into.names()) {

@@ -137,7 +137,9 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // A sample's number is 32 bits of its sampler key: past 2^32 a pixel's
     // sample streams would repeat, and the image would stop converging.
     if (st.first_sample + (st.time_budget > 0.0 ? 0 : st.spp) > (1LL << 32))
-        throw ParameterError("first sample index + spp must not exceed 2^32 samples per pixel");
+        throw ParameterError(fmt::format("spp {} from sample {} on exceeds the 2^32 samples per pixel a sampler "
+                                         "numbers",
+                                         st.spp, st.first_sample));
     prepare(scene);
     const int W = scene.camera().width(), H = scene.camera().height();
     const std::vector<SlotSpec> specs = slots();
@@ -211,11 +213,39 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     tbb::task_arena arena(st.threads > 0 ? st.threads : tbb::task_arena::automatic);
     long long done = 0;  // samples per pixel finished
     const auto cancelled = [&] { return st.cancel && st.cancel->load(); };
+    const auto aborted = [&] { return st.abort && st.abort->load(); };
     bool first_pass = true;
-    auto run_pass = [&](long long first, long long count) {
+    // A pass that is abandoned part-way (an interrupt that cannot wait for its
+    // end) restores the tiles it already added to from this copy of their
+    // sums, so that every pixel keeps the same number of samples.
+    std::unique_ptr<HugeDoubles> backup_sum, backup_sum2;
+    std::vector<uint8_t> tile_done(tiles.size());
+    // Runs samples [first, first + count) of every pixel. With `abandonable`,
+    // a tile not yet started when `stop_now()` holds is skipped, and the pass
+    // is then undone (from the backup, when it is not the first): returns
+    // false in that case.
+    auto run_pass = [&](long long first, long long count, bool abandonable, const auto& stop_now) {
+        std::atomic<bool> skipped{false};
+        std::fill(tile_done.begin(), tile_done.end(), uint8_t(0));
+        const bool keep = abandonable && !first_pass;
+        const auto tile_rows = [&](const auto& t, const auto& fn) {
+            for (int y = t.y0; y < t.y1; ++y) {
+                const size_t a = size_t(y) * W + t.x0, b = size_t(y) * W + t.x1;
+                fn(a * stride, b * stride, a * var_stride, b * var_stride);
+            }
+        };
         arena.execute([&] {
             tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
                 const Tile& t = tiles[ti];
+                if (abandonable && (skipped.load(std::memory_order_relaxed) || stop_now())) {
+                    skipped = true;
+                    return;
+                }
+                if (keep)
+                    tile_rows(t, [&](size_t s0, size_t s1, size_t q0, size_t q1) {
+                        std::copy(sum.data + s0, sum.data + s1, backup_sum->data + s0);
+                        std::copy(sum2.data + q0, sum2.data + q1, backup_sum2->data + q0);
+                    });
                 // Jobs in pixel order, sample order within a pixel, handed to
                 // sample_batch() `batch` at a time (across pixels when passes
                 // are short); each pixel's sums still add its samples in order.
@@ -281,6 +311,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                         }
                     }
                 if (n > 0) flush();
+                tile_done[ti] = 1;
                 rays += local_rays;
                 nonfinite += local_nan;
                 const uint64_t s = samples += uint64_t(count) * (t.x1 - t.x0) * (t.y1 - t.y0);
@@ -293,25 +324,79 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 }
             });
         });
-        first_pass = false;
+        if (!skipped) {
+            first_pass = false;
+            return true;
+        }
+        for (size_t ti = 0; ti < tiles.size(); ++ti) {
+            if (!tile_done[ti]) continue;
+            const Tile& t = tiles[ti];
+            samples -= uint64_t(count) * (t.x1 - t.x0) * (t.y1 - t.y0);
+            if (keep)
+                tile_rows(t, [&](size_t s0, size_t s1, size_t q0, size_t q1) {
+                    std::copy(backup_sum->data + s0, backup_sum->data + s1, sum.data + s0);
+                    std::copy(backup_sum2->data + q0, backup_sum2->data + q1, sum2.data + q0);
+                });
+        }
+        return false;
+    };
+
+    // Passes are sized to last about half of st.stop_latency, measured as the
+    // render goes (at most 16 samples per pixel): a cancel then waits at most
+    // that long. A pass predicted to last longer than st.stop_latency (one
+    // sample per pixel of a large or slow image) can be abandoned part-way
+    // and undone from a copy of the sums, when memory allows one. The
+    // division into passes does not change the image: every pixel still adds
+    // its samples in order.
+    const double wait_seconds = std::max(0.0, st.stop_latency), pass_seconds = 0.5 * wait_seconds;
+    double seconds_per_spp = 0.0;  // of the last pass; 0 before the first
+    const double backup_bytes = double(npix) * double(stride + var_stride) * sizeof(double);
+    const auto long_pass = [&](long long n) { return seconds_per_spp * double(n) >= wait_seconds; };
+    const auto ensure_backup = [&] {
+        if (backup_sum) return true;
+        if (have > 0.0 && need + backup_bytes > have) return false;
+        try {
+            backup_sum = std::make_unique<HugeDoubles>(npix * stride);
+            backup_sum2 = std::make_unique<HugeDoubles>(npix * var_stride);
+        } catch (const std::bad_alloc&) {
+            backup_sum.reset();
+            return false;
+        }
+        return true;
+    };
+    // An abandoned first pass leaves nothing to undo, and no image: a render
+    // needs a sample in every pixel, so render() then throws Interrupted.
+    const auto pass = [&](long long first, long long n) {
+        const auto t = seconds();
+        bool ok;
+        if (first_pass) ok = run_pass(first, n, true, [&] { return cancelled() || aborted(); });
+        else if (long_pass(n) && ensure_backup()) ok = run_pass(first, n, true, [&] { return cancelled() || aborted(); });
+        else ok = run_pass(first, n, false, aborted);
+        if (ok) seconds_per_spp = (seconds() - t) / double(n);
+        return ok;
+    };
+    const auto next_count = [&](long long left) {
+        if (!(seconds_per_spp > 0.0)) return std::min(left, 16LL);
+        return std::clamp((long long)(pass_seconds / seconds_per_spp), 1LL, std::min(left, 16LL));
     };
 
     if (timed) {
         // Whole passes of one sample per pixel until the budget is spent: an
         // equal-time comparison then compares complete images, not partial ones.
         do {
-            run_pass(st.first_sample + done, 1);
+            if (!pass(st.first_sample + done, 1)) break;
             ++done;
-        } while (seconds() < st.time_budget && !cancelled());
+        } while (seconds() < st.time_budget && !cancelled() && !aborted());
     } else {
-        // Passes bound the loss of an interrupted render and keep progress smooth.
-        const long long pass = std::max(1LL, std::min(st.spp, 16LL));
-        while (done < st.spp && !(done > 0 && cancelled())) {
-            const long long n = std::min(pass, st.spp - done);
-            run_pass(st.first_sample + done, n);
+        // The first pass takes one sample per pixel, to measure the rate.
+        long long n = 1;
+        while (done < st.spp && !(done > 0 && (cancelled() || aborted()))) {
+            if (!pass(st.first_sample + done, n)) break;
             done += n;
+            n = next_count(st.spp - done);
         }
     }
+    if (done == 0) throw Interrupted("the render was stopped before its first pass finished: there is no image to keep");
 
     // Means and variances are read from the sums by finalize() itself: a slot
     // that only feeds a combined layer (G-PT's splats and one-sided
@@ -319,6 +404,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     Accumulated acc;
     acc.specs = specs;
     acc.spp = done;
+    acc.derived = !aborted();
     acc.width = W, acc.height = H;
     acc.sum_ = sum.data, acc.sum2_ = sum2.data;
     acc.stride_ = stride, acc.var_stride_ = var_stride;

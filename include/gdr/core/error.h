@@ -30,4 +30,10 @@ public:
     using Error::Error;
 };
 
+/// A render stopped by its caller (RenderSettings::abort) before it had an image to return.
+class Interrupted : public Error {
+public:
+    using Error::Error;
+};
+
 }  // namespace gdr

@@ -23,9 +23,19 @@ struct RenderSettings {
     int threads = 0;               ///< Worker threads; 0 = all cores.
     uint64_t seed = 0;             ///< Sampler seed.
     long long first_sample = 0;    ///< Index of the first sample per pixel (resuming continues the sequence).
-    /// If set and true, the render stops after the current pass and returns
-    /// what it has (an interrupted render is still a valid, resumable image).
+    /// If set and true, the render stops within about a second and returns
+    /// what it has (an interrupted render is still a valid, resumable image):
+    /// after the pass under way, or, for a long pass, by abandoning it.
     const std::atomic<bool>* cancel = nullptr;
+    /// If set and true, the render stops at once: the pass under way is
+    /// abandoned where it can be undone, and if no pass has finished,
+    /// render() throws Interrupted.
+    const std::atomic<bool>* abort = nullptr;
+    /// Longest time (s) a cancel waits for the pass under way. Passes are sized
+    /// to half of it; a pass predicted to take longer (one sample per pixel of
+    /// a large image) is abandoned and undone instead, from a copy of the sums
+    /// taken only for such passes. Does not change the image.
+    double stop_latency = 1.0;
 };
 
 /// Progress of a running render, reported from worker threads.

@@ -35,6 +35,10 @@ public:
     long long spp = 0;            ///< Samples per pixel.
     int width = 0;                ///< Columns.
     int height = 0;               ///< Rows.
+    /// Whether layers derived from the means (reconstructions) are wanted:
+    /// false when the render was aborted, so that it stops at once; they
+    /// can be recomputed later (Integrator::update_merged).
+    bool derived = true;
 
     /// Index of a slot by name; throws ParameterError naming it if absent.
     int slot(const std::string& name) const;
