@@ -10,9 +10,26 @@
 // and a crops image per scene, and prints the time each G-PT variant needs
 // to reach PT's relMSE at the largest budget.
 //
+// Equal time charges everything: a G-PT + L1/L2 point's time includes its
+// reconstruction, so a slow solve costs G-PT samples, as it would a user.
+//
 // Usage: bench_equal_time [--quick] [--references-only] [--refresh-references]
-//          [--scenes a,b] [--width W] [--budgets s1,s2,..] [--ref-spp N]
+//          [--scenes a,b] [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..]
+//          [--ref-spp N] [--set key=value]... [--l1-set key=value]...
 //          [--out DIR] [--cache DIR] [--docs DIR] [--threads N]
+//
+//   --scenes a,b      built-in scenes by name (see --help); all six by default
+//   --scene PATH      any scene file (repeatable), named by its file stem in the
+//                     output, or NAME=PATH to name it; reference PT at 1024 spp
+//                     unless --ref-spp is given. Without --scenes, only these run.
+//   --set key=value   a parameter of the gpt integrator (repeatable; e.g. shift,
+//                     max_depth, alpha). The render is made with reconstruct=none
+//                     because the benchmark runs and times each solve itself, so
+//                     'reconstruct' is refused; 'alpha' is used by both solves.
+//   --l1-set key=value  a parameter of the poisson-l1 solve: its schedule, e.g.
+//                     preset=reference (the reference implementation's slow L1D)
+//                     or iterations, cg_iterations, tolerance (repeatable). The gpt
+//                     integrator itself has no parameter for the L1 schedule.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -56,9 +73,13 @@ const std::vector<SceneSpec> kAllScenes = {
     {"bathroom", GDR_SOURCE_DIR "/scenes/bathroom/scene.json", 512},
 };
 
+// A scene file's cost is unknown: 1024 spp is the middle of the built-ins' range.
+constexpr long long kCustomSceneRefSpp = 1024;
+
 struct Options {
     bool quick = false, references_only = false, refresh = false;
-    std::vector<std::string> scenes;
+    std::vector<SceneSpec> scenes;  // in the order given
+    std::vector<std::string> gpt_sets, l1_sets;  // "key=value" texts, in the order given
     // 192 px and 8 s keep the full run, references included, near 20 minutes on 2 cores.
     int width = 192;
     std::vector<double> budgets{0.25, 0.5, 1, 2, 4, 8};
@@ -75,6 +96,34 @@ std::vector<std::string> split(const std::string& s) {
     return v;
 }
 
+const SceneSpec& builtin_scene(const std::string& name) {
+    auto it = std::find_if(kAllScenes.begin(), kAllScenes.end(), [&](const SceneSpec& s) { return s.name == name; });
+    if (it == kAllScenes.end()) {
+        std::string names;
+        for (const SceneSpec& s : kAllScenes) names += " " + s.name;
+        throw ParameterError("--scenes: unknown scene '" + name + "' (built-in:" + names + "; any file: --scene PATH.json)");
+    }
+    return *it;
+}
+
+// "--scene PATH.json" or "--scene NAME=PATH.json". A '=' after a '/' belongs to the path.
+SceneSpec scene_option(const std::string& v) {
+    const size_t eq = v.find('=');
+    SceneSpec s;
+    if (eq != std::string::npos && v.find('/') > eq) s.name = v.substr(0, eq), s.path = v.substr(eq + 1);
+    else s.path = v, s.name = fs::path(v).stem().string();
+    if (s.name.empty() || s.path.empty())
+        throw ParameterError("--scene '" + v + "': expected PATH.json or NAME=PATH.json");
+    // The name becomes part of output and cache file names.
+    if (s.name.find_first_of("/\\") != std::string::npos || s.name == "." || s.name == "..")
+        throw ParameterError("--scene '" + v + "': the name '" + s.name + "' cannot be part of a file name");
+    // Checked now, so that a typing error is found before the other scenes' references are rendered.
+    std::error_code ec;
+    if (!fs::is_regular_file(s.path, ec)) throw InputError("--scene '" + v + "': no scene file " + s.path);
+    s.ref_spp = kCustomSceneRefSpp;
+    return s;
+}
+
 Options parse(int argc, char** argv) {
     Options o;
     bool width_set = false, budgets_set = false, spp_set = false;
@@ -87,7 +136,11 @@ Options parse(int argc, char** argv) {
         if (a == "--quick") o.quick = true;
         else if (a == "--references-only") o.references_only = true;
         else if (a == "--refresh-references") o.refresh = true;
-        else if (a == "--scenes") o.scenes = split(next());
+        else if (a == "--scenes") {
+            for (const std::string& n : split(next())) o.scenes.push_back(builtin_scene(n));
+        } else if (a == "--scene") o.scenes.push_back(scene_option(next()));
+        else if (a == "--set") o.gpt_sets.push_back(next());
+        else if (a == "--l1-set") o.l1_sets.push_back(next());
         else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
             o.budgets.clear();
@@ -100,8 +153,14 @@ Options parse(int argc, char** argv) {
         else if (a == "--threads") o.threads = int(cli::ArgReader::parse_int(a, next(), 0, 1 << 16));
         else if (a == "-h" || a == "--help") {
             std::printf("usage: bench_equal_time [--quick] [--references-only] [--refresh-references] [--scenes a,b]\n"
-                        "         [--width W] [--budgets s1,s2,..] [--ref-spp N] [--out DIR] [--cache DIR] [--docs DIR]\n"
-                        "         [--threads N]\nscenes:");
+                        "         [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..] [--ref-spp N]\n"
+                        "         [--set key=value]... [--l1-set key=value]... [--out DIR] [--cache DIR] [--docs DIR]\n"
+                        "         [--threads N]\n"
+                        "  --scene       any scene file (repeatable), named by its stem or NAME=\n"
+                        "  --set         a gpt integrator parameter (not 'reconstruct': the benchmark times the solves)\n"
+                        "  --l1-set      a poisson-l1 parameter, e.g. preset=reference, iterations=N\n"
+                        "G-PT times include the reconstruction: equal time charges everything.\n"
+                        "built-in scenes:");
             for (const SceneSpec& s : kAllScenes) std::printf(" %s", s.name.c_str());
             std::printf("\n");
             std::exit(0);
@@ -113,10 +172,15 @@ Options parse(int argc, char** argv) {
         if (!width_set) o.width = 96;
         if (!budgets_set) o.budgets = {0.25, 0.5, 1};
         if (!spp_set) o.ref_spp = 1024;
-        if (o.scenes.empty()) o.scenes = {"cbox-original", "cbox-glossy"};
+        if (o.scenes.empty()) o.scenes = {builtin_scene("cbox-original"), builtin_scene("cbox-glossy")};
     }
-    if (o.scenes.empty())
-        for (const SceneSpec& s : kAllScenes) o.scenes.push_back(s.name);
+    if (o.scenes.empty()) o.scenes = kAllScenes;
+    // Two scenes of one name would write over each other's outputs.
+    for (size_t i = 0; i < o.scenes.size(); ++i)
+        for (size_t j = 0; j < i; ++j)
+            if (o.scenes[i].name == o.scenes[j].name)
+                throw ParameterError("scene name '" + o.scenes[i].name + "' is given twice (" + o.scenes[j].path +
+                                     ", " + o.scenes[i].path + "); name one with --scene NAME=PATH.json");
     std::sort(o.budgets.begin(), o.budgets.end());
     if (o.budgets.empty() || o.budgets.front() <= 0) throw ParameterError("--budgets must be positive seconds");
     return o;
@@ -297,6 +361,55 @@ std::string fmt_speedup(double t_pt, const ReachTime& r, const std::vector<Curve
     return b;
 }
 
+// The one line that states what an equal-time point charges (console and summary.md).
+constexpr const char* kTimeCharge =
+    "Time charges everything: a G-PT+L1/L2 point is placed at its render + reconstruction wall time (the render "
+    "budget is the budget minus the L1 solve time measured beforehand, at least a tenth of it); G-PT primal is the render alone.";
+
+// The gpt integrator's parameters: --set, with the in-render solves off because
+// the benchmark times the L1 and L2 solves itself.
+Params make_gpt_params(const Options& o) {
+    Params gp("bench_equal_time --set");
+    for (const std::string& s : o.gpt_sets) {
+        gp.set_from_text(s);
+        if (gp.has("reconstruct"))
+            throw ParameterError("--set '" + s + "': the benchmark renders G-PT with reconstruct=none and runs and times "
+                                 "each solve itself (choose the L1 schedule with --l1-set)");
+    }
+    gp.set("reconstruct", std::string("none"));
+    return gp;
+}
+
+// alpha as gpt would pass it to its own solves (0.2 unless --set alpha=...).
+double solve_alpha(const Params& gpt_params) { return gpt_params.get_real("alpha", 0.2); }
+
+Params make_l1_params(const Options& o, const Params& gpt_params) {
+    Params rp("bench_equal_time --l1-set");
+    rp.set("alpha", solve_alpha(gpt_params));
+    for (const std::string& s : o.l1_sets) {
+        Params one("--l1-set");
+        one.set_from_text(s);
+        if (one.has("alpha"))
+            throw ParameterError("--l1-set '" + s + "': alpha is shared by both solves; give it with --set");
+        rp.set_from_text(s);
+    }
+    return rp;
+}
+
+Params make_l2_params(const Params& gpt_params) {
+    Params rp("bench_equal_time");
+    rp.set("alpha", solve_alpha(gpt_params));
+    return rp;
+}
+
+// describe()'s "key=value" lines joined with spaces.
+std::string one_line(std::string text) {
+    while (!text.empty() && text.back() == '\n') text.pop_back();
+    for (char& c : text)
+        if (c == '\n') c = ' ';
+    return text;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) try {
@@ -307,10 +420,18 @@ int main(int argc, char** argv) try {
     for (double b : o.budgets) std::printf(" %g", b);
     if (o.ref_spp > 0) std::printf(" s, reference PT %lld spp cached in %s\n", o.ref_spp, o.cache.c_str());
     else std::printf(" s, reference PT (per-scene spp) cached in %s\n", o.cache.c_str());
-    std::printf("error: relMSE, thesis convention (per channel, eps = 0.01); G-PT time = render + reconstruction\n");
+    std::printf("error: relMSE, thesis convention (per channel, eps = 0.01)\n");
+    const Params gpt_params = make_gpt_params(o), l1_params = make_l1_params(o, gpt_params),
+                 l2_params = make_l2_params(gpt_params);
+    // Created once here so that a misspelt key ends the run before any reference is rendered.
+    const std::string gpt_desc = one_line(integrator_registry().create("gpt", gpt_params)->describe());
+    const std::string l1_desc = one_line(reconstructor_registry().create("poisson-l1", l1_params)->describe());
+    const std::string settings = "G-PT: " + gpt_desc + "; L1 solve: " + l1_desc;
+    std::printf("%s\n%s\n", settings.c_str(), kTimeCharge);
     const auto t_start = Clock::now();
     std::vector<Row> rows;
     std::ostringstream summary;
+    summary << kTimeCharge << "\n\n" << settings << "\n\n";
     summary << "| scene | resolution | PT relMSE at " << o.budgets.back()
             << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up |\n"
             << "|---|---|---|---|---|---|---|\n";
@@ -320,10 +441,7 @@ int main(int argc, char** argv) try {
     // t_method_s: interpolated (or, flagged, extrapolated) time to reach target_relmse.
     std::ofstream speed(fs::path(o.out) / "speedups.csv");
     speed << "scene,method,target_relmse,t_pt_s,t_method_s,how,speedup,reported\n";
-    for (const std::string& sname : o.scenes) {
-        auto it = std::find_if(kAllScenes.begin(), kAllScenes.end(), [&](const SceneSpec& s) { return s.name == sname; });
-        if (it == kAllScenes.end()) throw ParameterError("unknown scene " + sname);
-        const SceneSpec& spec = *it;
+    for (const SceneSpec& spec : o.scenes) {
         std::printf("\n== %s (%s)\n", spec.name.c_str(), spec.path.c_str());
         const auto scene = load_scene_at_width(spec.path, o.width);
         const int W = scene->camera().width(), H = scene->camera().height();
@@ -336,11 +454,7 @@ int main(int argc, char** argv) try {
         if (o.references_only) continue;
 
         auto pt = integrator_registry().create("pt", Params());
-        Params gp;
-        gp.set("reconstruct", std::string("none"));
-        auto gpt = integrator_registry().create("gpt", gp);
-        Params rp;
-        rp.set("alpha", 0.2);
+        auto gpt = integrator_registry().create("gpt", gpt_params);
         // The L1 solve time (independent of the sample count) is taken out of G-PT's
         // render budget so that render + solve matches the budget.
         RenderSettings st;
@@ -349,7 +463,7 @@ int main(int argc, char** argv) try {
         FrameBuffer fb;
         gpt->render(*scene, st, fb);
         auto t0 = Clock::now();
-        (void)reconstruct("poisson-l1", rp, gradient_buffers(fb));
+        (void)reconstruct("poisson-l1", l1_params, gradient_buffers(fb));
         const double l1_est = since(t0);
         std::printf("  L1 solve %.3f s at this resolution\n", l1_est);
 
@@ -388,10 +502,10 @@ int main(int argc, char** argv) try {
             const double render_s = since(t0);
             const GradientBuffers gb = gradient_buffers(fb);
             t0 = Clock::now();
-            Image l1 = reconstruct("poisson-l1", rp, gb);
+            Image l1 = reconstruct("poisson-l1", l1_params, gb);
             const double s1 = since(t0);
             t0 = Clock::now();
-            Image l2 = reconstruct("poisson-l2", rp, gb);
+            Image l2 = reconstruct("poisson-l2", l2_params, gb);
             const double s2 = since(t0);
             const double e1 = add(1, T, render_s + s1, render_s, s1, rs.spp, l1);
             const double e2 = add(2, T, render_s + s2, render_s, s2, rs.spp, l2);

@@ -66,6 +66,23 @@ std::vector<double> blur(const std::vector<double>& in, int w, int h, const std:
     return out;
 }
 
+/// Mean of each channel over all pixels, in double.
+std::vector<double> channel_means(const Image& img) {
+    const int c = img.channels();
+    std::vector<double> m(size_t(c), 0.0);
+    for (size_t p = 0; p < img.pixel_count(); ++p)
+        for (int k = 0; k < c; ++k) m[size_t(k)] += img.data()[p * c + k];
+    for (double& v : m) v /= double(img.pixel_count());
+    return m;
+}
+
+/// "R", "G", "B", "A" for colour images, "Y" for grey, the index otherwise.
+std::string channel_name(int channels, int k) {
+    if (channels == 1) return "Y";
+    if (channels >= 3) return std::string(1, "RGBA"[k]);
+    return std::to_string(k);
+}
+
 }  // namespace
 
 double mse(const Image& img, const Image& ref) {
@@ -135,6 +152,14 @@ std::string compare_report(const Image& img, const Image& ref) {
     std::string out;
     out += fmt::format("size:          {}x{}, {} channels\n", img.width(), img.height(), img.channels());
     out += fmt::format("mean:          {:.6g} (reference {:.6g}; over pixels and channels)\n", mean(img), mean(ref));
+    // A mean that is off in one channel only (a colour-space or white-balance
+    // slip, a missing emitter colour) hides in the all-channel mean.
+    const auto mi = channel_means(img), mr = channel_means(ref);
+    for (int k = 0; k < img.channels(); ++k) {
+        const std::string ratio = mr[k] != 0.0 ? fmt::format("{:.6g}", mi[k] / mr[k]) : "n/a (reference mean is 0)";
+        out += fmt::format("{:<15}{:.6g} (reference {:.6g}; ratio {})\n", fmt::format("mean {}:", channel_name(img.channels(), k)),
+                           mi[k], mr[k], ratio);
+    }
     out += fmt::format("MSE:           {:.6g} (mean of (x-r)^2 over pixels and channels)\n", mse(img, ref));
     out += fmt::format("relMSE:        {:.6g} (mean of (x-r)^2/(r^2+0.01) per channel; thesis errata)\n",
                        relmse(img, ref, RelMseOptions::thesis()));
@@ -146,6 +171,28 @@ std::string compare_report(const Image& img, const Image& ref) {
                        ssim(img, ref));
     out += fmt::format("SSIM sRGB:     {:.6f} (same, on sRGB-encoded clamped values)\n",
                        ssim(img, ref, SsimOptions{true}));
+    return out;
+}
+
+Image box_downsample(const Image& img, int factor) {
+    if (factor < 1) throw ParameterError("box_downsample: factor must be >= 1, got " + std::to_string(factor));
+    if (img.empty()) throw ParameterError("box_downsample: image is empty");
+    if (img.width() % factor != 0 || img.height() % factor != 0)
+        throw ParameterError(fmt::format("box_downsample: {}x{} is not divisible by {} in both dimensions", img.width(),
+                                         img.height(), factor));
+    const int w = img.width() / factor, h = img.height() / factor, c = img.channels();
+    Image out(w, h, c);
+    // Double sums: a constant block comes out exact and the mean is kept to float rounding.
+    std::vector<double> sum(size_t(c), 0.0);
+    const double n = double(factor) * double(factor);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            std::fill(sum.begin(), sum.end(), 0.0);
+            for (int dy = 0; dy < factor; ++dy)
+                for (int dx = 0; dx < factor; ++dx)
+                    for (int k = 0; k < c; ++k) sum[size_t(k)] += img.at(x * factor + dx, y * factor + dy, k);
+            for (int k = 0; k < c; ++k) out.at(x, y, k) = float(sum[size_t(k)] / n);
+        }
     return out;
 }
 

@@ -1,5 +1,7 @@
 #include "gdr/core/params.h"
 
+#include <fmt/core.h>
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -10,12 +12,8 @@ namespace gdr {
 std::string to_string(const Params::Value& v) {
     if (auto b = std::get_if<bool>(&v)) return *b ? "true" : "false";
     if (auto i = std::get_if<long long>(&v)) return std::to_string(*i);
-    if (auto d = std::get_if<double>(&v)) {
-        std::ostringstream os;
-        os.precision(17);
-        os << *d;
-        return os.str();
-    }
+    // The shortest text that reads back as the same double: 0.2, not 0.20000000000000001.
+    if (auto d = std::get_if<double>(&v)) return fmt::format("{}", *d);
     return std::get<std::string>(v);
 }
 

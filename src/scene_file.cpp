@@ -49,9 +49,10 @@ float get_number(const std::string& file, const json& j, const std::string& key)
 // A whole number of at least `min` (resolutions, sample counts): 8.5 or "8" is an error, not 8.
 long long get_integer(const std::string& file, const json& j, const std::string& key, long long min) {
     if (!j.is_number_integer() && !(j.is_number_float() && std::floor(j.get<double>()) == j.get<double>()))
-        fail(file, "'" + key + "' must be an integer");
+        fail(file, "'" + key + "' must be an integer, got " + j.dump());
     const double v = j.get<double>();
-    if (v < double(min) || v > 9.0e15) fail(file, "'" + key + "' must be an integer >= " + std::to_string(min));
+    if (v < double(min) || v > 9.0e15)
+        fail(file, "'" + key + "' must be an integer >= " + std::to_string(min) + ", got " + j.dump());
     return j.is_number_integer() ? j.get<long long>() : (long long)(v);
 }
 
@@ -214,8 +215,15 @@ CameraDesc parse_camera(const std::string& file, const json& j, std::vector<std:
         if (a != "x" && a != "y") fail(file, "'camera.fov_axis' must be \"x\" or \"y\"");
         c.fov_axis = a[0];
     }
-    if (src.contains("width")) c.width = int(std::min(get_integer(file, src["width"], "camera.width", 1), 1LL << 20));
-    if (src.contains("height")) c.height = int(std::min(get_integer(file, src["height"], "camera.height", 1), 1LL << 20));
+    // Refused, not clamped: a clamped size would be a resolution nobody asked for.
+    const auto side = [&](const char* key) {
+        const long long v = get_integer(file, src[key], std::string("camera.") + key, 1);
+        if (v > (1LL << 20))
+            fail(file, std::string("'camera.") + key + "' must be at most 1048576 pixels, got " + src[key].dump());
+        return int(v);
+    };
+    if (src.contains("width")) c.width = side("width");
+    if (src.contains("height")) c.height = side("height");
     return c;
 }
 

@@ -15,7 +15,7 @@ kill -TERM "$pid"
 wait "$pid"
 rc=$?
 [ "$rc" = 143 ] || { echo "exit status $rc, expected 143"; cat "$work/log"; exit 1; }
-"$gdr" info "$work/out.exr" | grep -q "interrupted = true" || { echo "the EXR is not marked interrupted"; exit 1; }
+"$gdr" info "$work/out.exr" | grep -q "interrupted *= true" || { echo "the EXR is not marked interrupted"; exit 1; }
 spp=$("$gdr" info "$work/out.exr" | awk '$1 == "spp" && $2 == "=" {print $3}')
 { [ -n "$spp" ] && [ "$spp" -ge 1 ] && [ "$spp" -lt 1000000 ]; } || { echo "unexpected spp '$spp'"; exit 1; }
 echo "stopped by SIGTERM after $spp spp: exit status 143, image written"

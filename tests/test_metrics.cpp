@@ -114,3 +114,46 @@ TEST_CASE("metrics: compare report lists every metric with its convention", "[me
     REQUIRE(rep.back() == '\n');
     REQUIRE_THROWS_AS(compare_report(img, Image(16, 16, 1)), ParameterError);
 }
+
+TEST_CASE("metrics: box downsampling keeps the mean, is exact on constants, refuses other factors", "[metrics]") {
+    const Image img = pattern(12, 9, 3);
+    const Image half = box_downsample(img, 3);
+    REQUIRE(half.width() == 4);
+    REQUIRE(half.height() == 3);
+    REQUIRE(half.channels() == 3);
+    // Each output pixel is its block's mean, so the image mean is kept.
+    for (int k = 0; k < 3; ++k) {
+        double a = 0, b = 0;
+        for (int y = 0; y < 9; ++y)
+            for (int x = 0; x < 12; ++x) a += img.at(x, y, k);
+        for (int y = 0; y < 3; ++y)
+            for (int x = 0; x < 4; ++x) b += half.at(x, y, k);
+        REQUIRE(b / 12.0 == Approx(a / 108.0).epsilon(1e-6));
+    }
+    double block = 0;
+    for (int y = 3; y < 6; ++y)
+        for (int x = 6; x < 9; ++x) block += img.at(x, y, 1);
+    REQUIRE(half.at(2, 1, 1) == Approx(block / 9.0).epsilon(1e-6));
+
+    const Image flat(6, 4, 1, 0.37f);
+    const Image down = box_downsample(flat, 2);
+    for (float v : down.values()) REQUIRE(v == 0.37f);
+    REQUIRE(box_downsample(flat, 1).values() == flat.values());
+
+    REQUIRE_THROWS_WITH(box_downsample(flat, 3), Catch::Contains("6x4") && Catch::Contains("3"));
+    REQUIRE_THROWS_AS(box_downsample(flat, 4), ParameterError);
+    REQUIRE_THROWS_AS(box_downsample(flat, 0), ParameterError);
+    REQUIRE_THROWS_AS(box_downsample(Image(), 2), ParameterError);
+}
+
+TEST_CASE("metrics: compare report gives per-channel means and their ratio", "[metrics]") {
+    Image img(2, 2, 3), ref(2, 2, 3);
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 2; ++x) img.set_rgb(x, y, Color(0.3f, 0.2f, 0.1f)), ref.set_rgb(x, y, Color(0.1f, 0.2f, 0.f));
+    const std::string rep = compare_report(img, ref);
+    INFO(rep);
+    REQUIRE_THAT(rep, Catch::Contains("mean R:        0.3 (reference 0.1; ratio 3)"));
+    REQUIRE_THAT(rep, Catch::Contains("mean G:        0.2 (reference 0.2; ratio 1)"));
+    REQUIRE_THAT(rep, Catch::Contains("mean B:        0.1 (reference 0; ratio n/a"));
+    REQUIRE_THAT(compare_report(Image(1, 1, 1, 2.f), Image(1, 1, 1, 4.f)), Catch::Contains("mean Y:") && Catch::Contains("ratio 0.5"));
+}

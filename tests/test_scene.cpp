@@ -565,6 +565,20 @@ TEST_CASE("scene file: a key given twice is an error naming the file and the key
                  "render": {"seed": 1, "params": {"seed": 2}}})").empty());
 }
 
+TEST_CASE("scene file: an oversized or invalid resolution names the key and the value as given", "[scene][errors]") {
+    TempDir dir("resolution");
+    dir.write("tri.obj", "v -1 -1 -2\nv 1 -1 -2\nv 0 1 -2\nf 1 2 3\n");
+    const auto load = [&](const std::string& camera) {
+        dir.write("s.json", R"({"camera": )" + camera + R"(, "meshes": ["tri.obj"]})");
+        return error_of([&] { load_scene_file(dir / "s.json"); });
+    };
+    // Once clamped silently, and then reported as "1048576".
+    CHECK_THAT(load(R"({"width": 1e9, "height": 4})"), Contains("'camera.width'") && Contains("1000000000"));
+    CHECK_THAT(load(R"({"width": 4, "height": 0})"), Contains("'camera.height'") && Contains("got 0"));
+    CHECK_THAT(load(R"({"width": 4.5, "height": 4})"), Contains("'camera.width'") && Contains("4.5"));
+    CHECK(load(R"({"width": 1048576, "height": 1})").find("camera.width") == std::string::npos);
+}
+
 TEST_CASE("scene file: a directory given as the scene is an error saying so", "[scene][errors]") {
     CHECK_THAT(error_of([] { load_scene_file(kBad); }), Contains(kBad) && Contains("is a directory"));
     CHECK_THAT(error_of([] { load_scene_file(kBad + "directory.obj"); }),

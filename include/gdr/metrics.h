@@ -44,7 +44,16 @@ struct SsimOptions {
 double ssim(const Image& img, const Image& ref, const SsimOptions& opt = {});
 
 /// Human-readable lines (newline-terminated) with every metric above, each
-/// labelled with its convention; what the CLI `gdr compare` prints.
+/// labelled with its convention, and the per-channel means of both images
+/// with their ratio image / reference ("n/a" where the reference's mean is 0);
+/// what the CLI `gdr compare` prints.
 std::string compare_report(const Image& img, const Image& ref);
+
+/// Shrinks `img` by the integer `factor` in both dimensions, each output pixel
+/// the mean of a factor x factor block (a box filter, same units as the input),
+/// so that a render can be compared with a reference of a lower resolution
+/// without changing its mean. Throws ParameterError naming the size and factor
+/// unless factor >= 1 divides both the width and the height.
+Image box_downsample(const Image& img, int factor);
 
 }  // namespace gdr

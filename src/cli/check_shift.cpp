@@ -16,6 +16,7 @@ int check_shift(const std::vector<std::string>& args) {
     ShiftConfig cfg;
     while (a.more()) {
         const std::string o = a.next();
+        if (o == "-h" || o == "--help") return print_usage("check-shift");
         if (o == "--shift") shift_name = a.value(o);
         else if (o == "--paths") opt.paths = int(a.int_value(o, 1, std::numeric_limits<int>::max()));
         else if (o == "--seed") opt.seed = uint64_t(a.int_value(o, 0, std::numeric_limits<long long>::max()));
@@ -28,11 +29,11 @@ int check_shift(const std::vector<std::string>& args) {
             if (cfg.threshold < 0.f) throw ParameterError("option --threshold must be >= 0");
         }
         else if (o == "--probabilistic") cfg.probabilistic = true;
-        else if (!o.empty() && o[0] == '-') throw ParameterError("check-shift: unknown option '" + o + "'\n" + usage());
+        else if (!o.empty() && o[0] == '-') throw ParameterError("check-shift: unknown option '" + o + "'\n" + usage("check-shift"));
         else if (scene_path.empty()) scene_path = o;
         else throw ParameterError("check-shift: unexpected argument '" + o + "'");
     }
-    if (scene_path.empty()) throw ParameterError("check-shift: no scene file given\n" + usage());
+    if (scene_path.empty()) throw ParameterError("check-shift: no scene file given\n" + usage("check-shift"));
     const SceneFile sf = load_scene_file(scene_path);
     const auto shift = shift_registry().create(shift_name, Params("--shift"));
     const ShiftReport rep = validate_shift(*sf.scene, *shift, cfg, opt);

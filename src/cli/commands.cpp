@@ -31,7 +31,7 @@ long long ArgReader::parse_int(const std::string& opt, const std::string& v, lon
                              (hi == std::numeric_limits<long long>::max()
                                   ? ">= " + std::to_string(lo)
                                   : "between " + std::to_string(lo) + " and " + std::to_string(hi)) +
-                             ", got " + std::to_string(x));
+                             ", got '" + v + "'");
     return x;
 }
 
@@ -48,17 +48,98 @@ long long ArgReader::int_value(const std::string& opt, long long lo, long long h
 
 double ArgReader::real_value(const std::string& opt) { return parse_real(opt, value(opt)); }
 
+namespace {
+
+// One command's synopsis and options, as `gdr COMMAND --help` prints them.
+struct CommandHelp {
+    const char* name;
+    const char* synopsis;
+    const char* details;
+};
+
+const CommandHelp kCommands[] = {
+    {"render",
+     "gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
+     "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
+     "           [--exposure STOPS] -o OUT.exr",
+     "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
+     "preview beside it (OUT.png).\n"
+     "  --integrator NAME     pt, gpt, or any registered integrator (gdr list); default: the scene's\n"
+     "  --spp N               samples per pixel (with --resume: the new total)\n"
+     "  --time SECONDS        render whole passes until the wall-clock budget is spent (with --resume: the new total)\n"
+     "  --threads N           worker threads (0: all cores)\n"
+     "  --seed S              sampler seed; parts with different seeds merge (gdr merge)\n"
+     "  --width W, --height H resolution; one of them alone keeps the camera's aspect ratio\n"
+     "  --resolution WxH      both at once\n"
+     "  --set key=value       an integrator parameter (gdr list shows them), or the scene's fov (degrees)\n"
+     "  --resume FILE.exr     continue FILE's sample sequence towards its target (or a new --spp/--time\n"
+     "                        total), with its integrator and parameters; refused for another scene,\n"
+     "                        integrator, parameter or resolution\n"
+     "  --exposure STOPS      exposure of the PNG preview\n"
+     "  -o OUT.exr            the output; never one of the inputs\n"
+     "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
+     "143); a second Ctrl-C stops at once."},
+    {"merge", "gdr merge A.exr B.exr [...] -o OUT.exr",
+     "Pools renders of one scene with one integrator and its parameters (parts rendered with different\n"
+     "seeds, or continuations of one seed) into the image of all their samples. Renders that hold the\n"
+     "same samples, or differ in scene, integrator, parameter or resolution, are refused. A merged\n"
+     "file can be merged again."},
+    {"info", "gdr info FILE.exr", "Prints the layers of an EXR, their means, and the settings stored in its header."},
+    {"reconstruct", "gdr reconstruct IN.exr|NAME-primal.exr [--method NAME] [--alpha A] [--set key=value]... -o OUT.exr",
+     "Reconstructs an image from a gradient-domain render's primal and gradients (gdr's layers, or the\n"
+     "NAME-primal/dx/dy/direct.exr files of the Mitsuba-based implementation).\n"
+     "  --method NAME   poisson-l1 (default), poisson-l2, or any registered reconstructor (gdr list)\n"
+     "  --alpha A       weight of the primal in the screened Poisson energy (default 0.2)"},
+    {"compare", "gdr compare IMAGE.exr REFERENCE.exr [--layer NAME] [--ref-layer NAME] [--downsample K]",
+     "Prints which layers are compared, the error of IMAGE against REFERENCE (MSE, relMSE, MAE, SSIM)\n"
+     "and the per-channel means of both.\n"
+     "  --layer NAME      layer of IMAGE (default: its final image, the one its PNG preview shows:\n"
+     "                    reconstruction_l1 if present, else color); REFERENCE uses it too if it has\n"
+     "                    that layer and --ref-layer is not given, else its own final image\n"
+     "  --ref-layer NAME  layer of REFERENCE\n"
+     "  --downsample K    box-filter the larger image down by K, which must be exactly K times the\n"
+     "                    smaller in both dimensions; without it, sizes that differ by one integer\n"
+     "                    factor in both dimensions are downsampled automatically\n"
+     "A grey layer is broadcast to compare with an RGB one, and alpha is dropped to compare with RGB."},
+    {"check-shift",
+     "gdr check-shift SCENE.json [--shift NAME] [--paths N] [--seed S] [--max-depth D] [--threshold T] "
+     "[--probabilistic]",
+     "Samples base paths, shifts each to its right-hand neighbour, and checks the failure rate,\n"
+     "reversibility and each step's analytic against a finite-difference Jacobian. Ends with PASS or FAIL."},
+    {"list", "gdr list", "Lists the registered integrators with their parameters, shift mappings and reconstructors."},
+    {"help", "gdr help [COMMAND]", "Prints the usage of every command, or one command's options."},
+    {"version", "gdr --version", "Prints gdr's version."},
+};
+
+const CommandHelp* find_command(const std::string& name) {
+    for (const CommandHelp& c : kCommands)
+        if (name == c.name) return &c;
+    return nullptr;
+}
+
+}  // namespace
+
+std::string version() { return GDR_VERSION; }
+
 std::string usage() {
-    return "usage:\n"
-           "  gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N]\n"
-           "             [--seed S] [--set key=value]... [--resume PREVIOUS.exr] [--exposure STOPS] -o OUT.exr\n"
-           "  gdr merge A.exr B.exr [...] -o OUT.exr   (independent renders of one scene and integrator)\n"
-           "  gdr info FILE.exr\n"
-           "  gdr reconstruct IN.exr|NAME-primal.exr [--method poisson-l1|poisson-l2] [--alpha A] [--set k=v] -o OUT.exr\n"
-           "  gdr compare IMAGE.exr REFERENCE.exr [--layer NAME]\n"
-           "  gdr check-shift SCENE.json [--shift NAME] [--paths N] [--seed S] [--max-depth D]\n"
-           "             [--threshold T] [--probabilistic]\n"
-           "  gdr list                      (integrators, shift mappings and reconstructors)\n";
+    std::string s = "usage:\n";
+    for (const CommandHelp& c : kCommands) {
+        std::string syn = c.synopsis;
+        for (size_t at = syn.find('\n'); at != std::string::npos; at = syn.find('\n', at + 1)) syn.insert(at + 1, "  ");
+        s += "  " + syn + "\n";
+    }
+    return s + "'gdr help COMMAND' or 'gdr COMMAND --help' prints a command's options.\n";
+}
+
+std::string usage(const std::string& command) {
+    const CommandHelp* c = find_command(command);
+    if (!c) return usage();
+    return std::string("usage: ") + c->synopsis + "\n\n" + c->details + "\n";
+}
+
+int print_usage(const std::string& command) {
+    fmt::print("{}", command.empty() ? usage() : usage(command));
+    return 0;
 }
 
 int list_plugins();
@@ -67,9 +148,20 @@ int reconstruct(const std::vector<std::string>& args);
 int compare(const std::vector<std::string>& args);
 
 int run(const std::vector<std::string>& args) {
-    if (args.empty() || args[0] == "-h" || args[0] == "--help" || args[0] == "help") {
-        fmt::print("{}", usage());
-        return args.empty() ? 2 : 0;
+    if (args.empty()) {
+        fmt::print(stderr, "{}", usage());
+        return 2;
+    }
+    if (args[0] == "-h" || args[0] == "--help") return print_usage("");
+    if (args[0] == "--version" || args[0] == "-V" || args[0] == "version") {
+        fmt::print("gdr {}\n", version());
+        return 0;
+    }
+    if (args[0] == "help") {
+        if (args.size() > 2) throw ParameterError("help: takes at most one command, got '" + args[2] + "'");
+        if (args.size() == 2 && !find_command(args[1]))
+            throw ParameterError("help: unknown command '" + args[1] + "'\n" + usage());
+        return print_usage(args.size() == 2 ? args[1] : "");
     }
     // Writing a 512x512 G-PT render's EXR (25 MB of ZIP-compressed floats)
     // took 1.15 s on one thread and 0.64 s on two.
@@ -80,6 +172,8 @@ int run(const std::vector<std::string>& args) {
     (void)exr_threads;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     const std::string& cmd = args[0];
+    // `gdr COMMAND --help` for every command, before its own option parsing.
+    if (find_command(cmd) && rest.size() == 1 && (rest[0] == "-h" || rest[0] == "--help")) return print_usage(cmd);
     if (cmd == "render") return render(rest);
     if (cmd == "info") return info(rest);
     if (cmd == "merge") return merge(rest);

@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "say.h"
 #include "gdr/core/error.h"
 #include "gdr/core/params.h"
 #include "gdr/integrators/integrator.h"
@@ -37,45 +38,38 @@ int merge(const std::vector<std::string>& args) {
     std::string out;
     while (a.more()) {
         const std::string o = a.next();
+        if (o == "-h" || o == "--help") return print_usage("merge");
         if (o == "-o" || o == "--output") out = a.value(o);
-        else if (!o.empty() && o[0] == '-') throw ParameterError("merge: unknown option '" + o + "'\n" + usage());
+        else if (!o.empty() && o[0] == '-') throw ParameterError("merge: unknown option '" + o + "'\n" + usage("merge"));
         else inputs.push_back(o);
     }
-    if (inputs.size() < 2) throw ParameterError("merge: give at least two renders\n" + usage());
+    if (inputs.size() < 2) throw ParameterError("merge: give at least two renders\n" + usage("merge"));
     if (out.empty()) throw ParameterError("merge: no output given (-o OUT.exr)");
     check_output_path(out);
+    check_not_an_input(out, inputs);
 
     std::vector<StoredRender> parts;
-    for (const std::string& f : inputs) {
-        parts.push_back(read_stored_render(f));
-        // Parameters are compared between parts, so they must be recorded.
-        if (!parts.back().fb.metadata().count("integrator_params"))
-            throw InputError(f + ": not a gdr render (no 'integrator_params' entry)");
-    }
-    const auto& m0 = parts[0].fb.metadata();
-    for (size_t i = 1; i < parts.size(); ++i) {
-        const auto& m = parts[i].fb.metadata();
-        for (const char* k : {"integrator", "integrator_params"})
-            if (m.at(k) != m0.at(k))
-                throw InputError(parts[i].file + ": made with another " + std::string(k) + " than " + parts[0].file +
-                                 ":\n" + m.at(k) + "\nagainst\n" + m0.at(k));
-        if (m.at("scene") != m0.at("scene"))
-            fmt::print(stderr, "warning: {} renders {}, {} renders {}\n", parts[i].file, m.at("scene"), parts[0].file,
-                       m0.at("scene"));
-    }
+    for (const std::string& f : inputs) parts.push_back(read_stored_render(f));
+    const RenderIdentity id0 = identity_of(parts[0]);
+    for (size_t i = 1; i < parts.size(); ++i) check_same_render(id0, parts[0].file, identity_of(parts[i]), parts[i].file);
     // Samples of one seed are numbered: two parts holding the same numbers are
     // the same samples, which would be counted twice.
     for (size_t i = 0; i < parts.size(); ++i)
-        for (size_t j = i + 1; j < parts.size(); ++j) {
-            const StoredRender &p = parts[i], &q = parts[j];
-            if (p.seed == q.seed && p.first_sample < q.first_sample + q.spp && q.first_sample < p.first_sample + p.spp)
-                throw InputError(p.file + " and " + q.file + " hold the same samples (seed " + std::to_string(p.seed) +
-                                 "): merge renders with different seeds or --resume'd continuations");
-        }
+        for (size_t j = i + 1; j < parts.size(); ++j)
+            for (const SampleRange& p : parts[i].ranges)
+                for (const SampleRange& q : parts[j].ranges)
+                    if (p.seed == q.seed && p.first < q.first + q.count && q.first < p.first + p.count)
+                        throw InputError(fmt::format("{} and {} hold the same samples (seed {}, samples {}-{} and "
+                                                     "{}-{}): merge renders with different seeds or --resume'd "
+                                                     "continuations",
+                                                     parts[i].file, parts[j].file, p.seed, p.first,
+                                                     p.first + p.count - 1, q.first, q.first + q.count - 1));
 
     FrameBuffer merged = parts[0].fb;
     double seconds = 0.0;
     bool interrupted = false;
+    uint64_t held = 0, remaining = 0;  // samples per pixel in all parts, and still to take towards their targets
+    std::vector<SampleRange> ranges;
     for (size_t i = 0; i < parts.size(); ++i) {
         if (i > 0) {
             try {
@@ -87,6 +81,11 @@ int merge(const std::vector<std::string>& args) {
         const auto& m = parts[i].fb.metadata();
         seconds += parts[i].seconds;
         interrupted |= m.count("interrupted") && m.at("interrupted") == "true";
+        held += parts[i].spp;
+        // A part's target counts from its sequence's first sample (sample 0 for a fresh render).
+        const uint64_t reached = parts[i].ranges.size() == 1 ? parts[i].first_sample + parts[i].spp : 0;
+        if (parts[i].ranges.size() == 1 && parts[i].target_spp > reached) remaining += parts[i].target_spp - reached;
+        ranges.insert(ranges.end(), parts[i].ranges.begin(), parts[i].ranges.end());
     }
     // An integrator registered by another program is unknown here; its
     // non-mean layers (if it has any) cannot be recomputed, only averaged.
@@ -94,31 +93,32 @@ int merge(const std::vector<std::string>& args) {
     try {
         integrator = integrator_of(parts[0]);
     } catch (const ParameterError& e) {
-        fmt::print(stderr, "warning: {}; layers that are not sample means, if any, are averaged\n", e.what());
+        say("warning: {}; layers that are not sample means, if any, are averaged\n", e.what());
     }
     if (integrator) integrator->update_merged(merged);
 
     // One seed in one unbroken range of sample numbers is a render that --resume can continue.
-    std::vector<const StoredRender*> order;
-    for (const StoredRender& p : parts) order.push_back(&p);
-    std::sort(order.begin(), order.end(),
-              [](const StoredRender* x, const StoredRender* y) { return x->first_sample < y->first_sample; });
-    bool one_sequence = true;
-    for (size_t i = 1; i < order.size(); ++i)
-        one_sequence &= order[i]->seed == order[0]->seed &&
-                        order[i]->first_sample == order[i - 1]->first_sample + order[i - 1]->spp;
+    ranges = normalized_ranges(ranges);
+    const bool one_sequence = ranges.size() == 1;
     auto& meta = merged.metadata();
-    meta["seed"] = one_sequence ? std::to_string(order[0]->seed) : kMixedSeeds;
-    meta["first_sample"] = one_sequence ? std::to_string(order[0]->first_sample) : kMixedSeeds;
+    meta["seed"] = one_sequence ? std::to_string(ranges[0].seed) : kMixedSeeds;
+    meta["first_sample"] = one_sequence ? std::to_string(ranges[0].first) : kMixedSeeds;
+    meta["sample_ranges"] = format_sample_ranges(ranges);
+    // What the parts were asked for: an interrupted part's missing samples
+    // are still to be taken by --resume.
+    meta["target_spp"] = std::to_string((one_sequence ? ranges[0].first : 0) + held + remaining);
+    meta["time_budget"] = "0";
     meta["render_seconds"] = fmt::format("{:.3f}", seconds);
     meta["interrupted"] = interrupted ? "true" : "false";
+    meta["gdr_version"] = version();
     std::string from;
     for (const StoredRender& p : parts) from += (from.empty() ? "" : ", ") + std::filesystem::absolute(p.file).string();
     meta["merged_from"] = from;
 
     const std::string preview = write_render(out, merged);
-    fmt::print(stderr, "merged {} renders, {} spp in all{} -> {}{}\n", parts.size(), meta.at("spp"),
-               one_sequence ? "" : " (several seeds: not resumable)", out, preview.empty() ? "" : " and " + preview);
+    say("merged {} renders, {} spp in all{} -> {}{}\n", parts.size(), meta.at("spp"),
+        one_sequence ? "" : " (several seeds: merge more parts in; --resume needs one seed)", out,
+        preview.empty() ? "" : " and " + preview);
     return 0;
 }
 

@@ -5,7 +5,6 @@
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
-#include "gdr/metrics.h"
 #include "gdr/reconstruct/reconstructor.h"
 
 namespace gdr::cli {
@@ -30,17 +29,26 @@ int reconstruct(const std::vector<std::string>& args) {
     Params params("gdr reconstruct");
     while (a.more()) {
         const std::string o = a.next();
+        if (o == "-h" || o == "--help") return print_usage("reconstruct");
         if (o == "-o" || o == "--output") out = a.value(o);
         else if (o == "--method") method = a.value(o);
         else if (o == "--alpha") params.set("alpha", a.real_value(o));
         else if (o == "--set") params.set_from_text(a.value(o));
-        else if (!o.empty() && o[0] == '-') throw ParameterError("reconstruct: unknown option '" + o + "'\n" + usage());
+        else if (!o.empty() && o[0] == '-') throw ParameterError("reconstruct: unknown option '" + o + "'\n" + usage("reconstruct"));
         else if (in.empty()) in = o;
         else throw ParameterError("reconstruct: unexpected argument '" + o + "'");
     }
-    if (in.empty()) throw ParameterError("reconstruct: no input given\n" + usage());
+    if (in.empty()) throw ParameterError("reconstruct: no input given\n" + usage("reconstruct"));
     if (out.empty()) throw ParameterError("reconstruct: no output given (-o OUT.exr)");
     check_output_path(out);
+    {
+        // The input, or every file of the reference implementation's layout.
+        std::vector<std::string> inputs{in};
+        const std::string base = reference_prefix(in).empty() ? in : reference_prefix(in);
+        for (const char* suffix : {"-primal.exr", "-throughput.exr", "-dx.exr", "-dy.exr", "-direct.exr"})
+            inputs.push_back(base + suffix);
+        check_not_an_input(out, inputs);
+    }
 
     GradientFrame frame;
     FrameBuffer fb;
@@ -78,28 +86,6 @@ int reconstruct(const std::vector<std::string>& args) {
     const std::string preview = write_render(out, result);
     fmt::print(stderr, "reconstructed {} ({}x{}) with {} -> {}{}\n", layout, img.width(), img.height(), method, out,
                preview.empty() ? "" : " and " + preview);
-    return 0;
-}
-
-int compare(const std::vector<std::string>& args) {
-    ArgReader a{args};
-    std::string img_path, ref_path, layer;
-    while (a.more()) {
-        const std::string o = a.next();
-        if (o == "--layer") layer = a.value(o);
-        else if (!o.empty() && o[0] == '-') throw ParameterError("compare: unknown option '" + o + "'\n" + usage());
-        else if (img_path.empty()) img_path = o;
-        else if (ref_path.empty()) ref_path = o;
-        else throw ParameterError("compare: unexpected argument '" + o + "'");
-    }
-    if (ref_path.empty()) throw ParameterError("compare: expected IMAGE.exr REFERENCE.exr\n" + usage());
-    const auto pick = [&](const std::string& path) {
-        const FrameBuffer fb = read_exr(path);
-        if (!layer.empty() && !fb.has(layer)) throw InputError(path + ": no layer '" + layer + "'");
-        if (!layer.empty()) return fb.get(layer);
-        return read_exr_rgb(path);
-    };
-    fmt::print("{}", compare_report(pick(img_path), pick(ref_path)));
     return 0;
 }
 

@@ -12,6 +12,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "say.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
@@ -27,13 +28,31 @@ namespace {
 // More threads than this is a typing error, not a machine.
 constexpr long long kMaxThreads = 1 << 16;
 
-std::atomic<bool> g_interrupted{false};
-std::atomic<int> g_signal{0};  // the signal that interrupted the render
+// Most pixels along one side: more is a typing error, and the EXR reader refuses it.
+constexpr long long kMaxResolution = 1 << 20;
+
+std::atomic<bool> g_interrupted{false};  // first interrupt: stop within about a second
+std::atomic<bool> g_abort{false};        // second interrupt: stop at once
+std::atomic<int> g_signal{0};            // the signal that interrupted the render
+static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs lock-free flags");
+
+// Writes a fixed message from a signal handler (write(2) is async-signal-safe; stdio is not).
+template <size_t N>
+void signal_message(const char (&text)[N]) {
+    const ssize_t r = write(STDERR_FILENO, text, N - 1);
+    (void)r;
+}
+
 // SIGTERM too: a batch scheduler ending a job sends it (before SIGKILL),
 // and the samples taken so far should still reach the file.
 extern "C" void on_stop_signal(int sig) {
     g_signal = sig;
-    g_interrupted = true;
+    if (!g_interrupted.exchange(true)) {
+        signal_message("\ngdr: stopping within about a second, then writing the image (interrupt again to stop at once)\n");
+    } else {
+        g_abort = true;
+        signal_message("\ngdr: stopping at once, writing only the finished passes\n");
+    }
 }
 
 // Prints progress: a redrawn bar on a terminal, a plain line every 10% otherwise.
@@ -49,17 +68,17 @@ public:
             if (p.seconds - last_ < 0.1 && p.fraction < 1.0) return;
             last_ = p.seconds;
             const int width = 30, filled = int(p.fraction * width);
-            fmt::print(stderr, "\r[{}{}] {:5.1f}%  {:.2f} M samples/s  ETA {:.1f} s   ", std::string(filled, '#'),
-                       std::string(width - filled, '.'), 100.0 * p.fraction, rate * 1e-6, eta);
+            say("\r[{}{}] {:5.1f}%  {:.2f} M samples/s  ETA {:.1f} s   ", std::string(filled, '#'),
+                std::string(width - filled, '.'), 100.0 * p.fraction, rate * 1e-6, eta);
         } else {
             const int decile = int(p.fraction * 10.0);
             if (decile <= last_decile_) return;
             last_decile_ = decile;
-            fmt::print(stderr, "progress {:3d}%  {:.2f} M samples/s  ETA {:.1f} s\n", decile * 10, rate * 1e-6, eta);
+            say("progress {:3d}%  {:.2f} M samples/s  ETA {:.1f} s\n", decile * 10, rate * 1e-6, eta);
         }
     }
     void finish() {
-        if (tty_) fmt::print(stderr, "\n");
+        if (tty_) say("\n");
     }
 
 private:
@@ -69,236 +88,340 @@ private:
     int last_decile_ = 0;
 };
 
-// The non-negative integer metadata entry `key` of a render read from `file`.
-uint64_t metadata_count(const FrameBuffer& fb, const std::string& file, const std::string& key) {
-    const auto it = fb.metadata().find(key);
-    if (it == fb.metadata().end()) throw InputError(file + ": not a gdr render (no '" + key + "' entry)");
-    const std::string& v = it->second;
-    char* end = nullptr;
-    errno = 0;
-    const unsigned long long x = std::strtoull(v.c_str(), &end, 10);
-    if (v.empty() || *end || v[0] == '-' || errno == ERANGE)
-        throw InputError(file + ": metadata entry '" + key + "' is not a sample count or seed: '" + v + "'");
-    return x;
+}  // namespace
+
+namespace {
+
+// True if the --set assignment names a key of the scene rather than of the integrator.
+bool is_scene_key(const std::string& assignment) { return assignment.substr(0, assignment.find('=')) == "fov"; }
+
+// Applies a --set assignment of a scene key (is_scene_key) to the loaded scene.
+void apply_scene_setting(SceneFile& sf, const std::string& assignment) {
+    const size_t eq = assignment.find('=');
+    const std::string key = assignment.substr(0, eq), value = eq == std::string::npos ? "" : assignment.substr(eq + 1);
+    const double fov = ArgReader::parse_real("--set " + key, value);
+    if (!(fov > 0.0 && fov < 180.0))
+        throw ParameterError("--set " + key + ": the field of view must lie between 0 and 180 degrees, got '" + value + "'");
+    set_fov(sf, float(fov));
 }
 
-// The render time recorded in a render read from `file` (s), 0 if none.
-double metadata_seconds(const FrameBuffer& fb, const std::string& file) {
-    const auto it = fb.metadata().find("render_seconds");
-    if (it == fb.metadata().end()) return 0.0;
-    char* end = nullptr;
-    const double x = std::strtod(it->second.c_str(), &end);
-    if (it->second.empty() || *end || !(x >= 0.0))
-        throw InputError(file + ": metadata entry 'render_seconds' is not a time: '" + it->second + "'");
-    return x;
+// Parses "WxH" of --resolution.
+std::pair<int, int> parse_resolution(const std::string& v) {
+    const size_t x = v.find_first_of("xX");
+    if (x == std::string::npos) throw ParameterError("option --resolution expects WIDTHxHEIGHT, got '" + v + "'");
+    return {int(ArgReader::parse_int("--resolution", v.substr(0, x), 1, kMaxResolution)),
+            int(ArgReader::parse_int("--resolution", v.substr(x + 1), 1, kMaxResolution))};
+}
+
+// The integrator parameters stored in a render's header, as Params that
+// --set may then override.
+Params stored_params(const StoredRender& r) {
+    Params p(r.file + " (integrator_params)");
+    const std::string& lines = r.fb.metadata().at("integrator_params");
+    for (size_t at = 0; at < lines.size();) {
+        const size_t end = std::min(lines.find('\n', at), lines.size());
+        if (end > at) p.set_from_text(lines.substr(at, end - at));
+        at = end + 1;
+    }
+    return p;
 }
 
 }  // namespace
 
-StoredRender read_stored_render(const std::string& file) {
-    StoredRender r{file, read_exr(file)};
-    const auto& m = r.fb.metadata();
-    for (const char* k : {"integrator", "scene"})
-        if (!m.count(k)) throw InputError(file + ": not a gdr render (no '" + std::string(k) + "' entry)");
-    if (m.count("seed") && m.at("seed") == kMixedSeeds)
-        throw InputError(file + ": merged from renders with different seeds, so it holds no single sample sequence to "
-                         "continue or to merge again; render more with a new seed and merge the parts (gdr merge)");
-    r.seed = metadata_count(r.fb, file, "seed");
-    r.first_sample = metadata_count(r.fb, file, "first_sample");
-    r.spp = metadata_count(r.fb, file, "spp");
-    constexpr uint64_t kMaxSamples = uint64_t(std::numeric_limits<long long>::max());
-    if (r.first_sample > kMaxSamples || r.spp > kMaxSamples - r.first_sample)
-        throw InputError(file + ": sample counts in the metadata are out of range");
-    r.seconds = metadata_seconds(r.fb, file);
-    return r;
-}
-
-void check_output_path(const std::string& path) {
-    namespace fs = std::filesystem;
-    std::error_code ec;
-    if (fs::is_directory(path, ec)) throw InputError("cannot write '" + path + "': it is a directory");
-    if (fs::is_fifo(path, ec) || fs::is_socket(path, ec))
-        throw InputError("cannot write '" + path + "': an EXR cannot go to a pipe (its writer seeks back)");
-    fs::path dir = fs::path(path).parent_path();
-    if (dir.empty()) dir = ".";
-    if (!fs::is_directory(dir, ec)) throw InputError("cannot write '" + path + "': no directory '" + dir.string() + "'");
-    if (access(dir.c_str(), W_OK) != 0)
-        throw InputError("cannot write '" + path + "': directory '" + dir.string() + "' is not writable");
-}
-
-std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure) {
-    write_exr_or_rescue(out, fb);
-    // A device or pipe (-o /dev/null) gets no preview: it would be a stray file in /dev.
-    std::error_code ec;
-    if (std::filesystem::exists(out, ec) && !std::filesystem::is_regular_file(out, ec)) return "";
-    const std::string png = std::filesystem::path(out).replace_extension(".png").string();
-    // A gradient-domain render is shown as its L1 reconstruction, anything else as its colour.
-    const std::string layer = fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.has("color") ? "color" : fb.names().front();
-    write_png_preview(png, fb.get(layer), exposure);
-    return png + " (" + layer + ")";
-}
-
-std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {
-    try {
-        write_exr(path, fb);
-        return path;
-    } catch (const Error& e) {
-        const std::string rescue =
-            (std::filesystem::temp_directory_path() / fmt::format("gdr-rescue-{}.exr", getpid())).string();
-        bool saved = false;
-        try {
-            write_exr(rescue, fb);
-            saved = true;
-        } catch (const Error&) {
-        }
-        if (!saved) throw;
-        throw RuntimeFailure(std::string(e.what()) + "\nthe render was saved to " + rescue +
-                             " instead (gdr render --resume accepts it)");
-    }
-}
-
 int render(const std::vector<std::string>& args) {
+    // A closed pipe on stderr (`2>&1 | head -1`) must not kill a render: its
+    // messages are optional, its file is not (say() ignores failed writes).
+    struct IgnorePipe {
+        void (*old)(int) = std::signal(SIGPIPE, SIG_IGN);
+        ~IgnorePipe() { std::signal(SIGPIPE, old); }
+    } ignore_pipe;
     ArgReader a{args};
     std::string scene_path, out_path, integrator_name, resume_path;
     long long spp = -1, seed = -1;
+    int width = 0, height = 0;
     double time_budget = 0.0, exposure = 0.0;
     int threads = 0;
-    std::vector<std::string> sets;
+    std::vector<std::string> sets, scene_sets;
     while (a.more()) {
         const std::string opt = a.next();
+        if (opt == "-h" || opt == "--help") return print_usage("render");
         if (opt == "-o" || opt == "--output") out_path = a.value(opt);
         else if (opt == "--integrator") integrator_name = a.value(opt);
         else if (opt == "--spp") spp = a.int_value(opt, 1, std::numeric_limits<long long>::max());
         else if (opt == "--time") {
-            time_budget = a.real_value(opt);
-            if (!(time_budget > 0.0)) throw ParameterError("option --time must be positive, got " + fmt::format("{}", time_budget));
+            const std::string v = a.value(opt);
+            time_budget = ArgReader::parse_real(opt, v);
+            if (!(time_budget > 0.0)) throw ParameterError("option --time must be positive, got '" + v + "'");
         } else if (opt == "--threads") threads = int(a.int_value(opt, 0, kMaxThreads));
         else if (opt == "--seed") seed = a.int_value(opt, 0, std::numeric_limits<long long>::max());
-        else if (opt == "--set") sets.push_back(a.value(opt));
-        else if (opt == "--resume") resume_path = a.value(opt);
+        else if (opt == "--width") width = int(a.int_value(opt, 1, kMaxResolution));
+        else if (opt == "--height") height = int(a.int_value(opt, 1, kMaxResolution));
+        else if (opt == "--resolution") std::tie(width, height) = parse_resolution(a.value(opt));
+        else if (opt == "--set") {
+            const std::string v = a.value(opt);
+            // Keys of the scene rather than of the integrator.
+            (is_scene_key(v) ? scene_sets : sets).push_back(v);
+        } else if (opt == "--resume") resume_path = a.value(opt);
         else if (opt == "--exposure") exposure = a.real_value(opt);
-        else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage());
+        else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage("render"));
         else if (scene_path.empty()) scene_path = opt;
         else throw ParameterError("render: unexpected argument '" + opt + "'");
     }
-    if (scene_path.empty()) throw ParameterError("render: no scene file given\n" + usage());
+    if (scene_path.empty()) throw ParameterError("render: no scene file given\n" + usage("render"));
     if (out_path.empty()) throw ParameterError("render: no output given (-o OUT.exr)");
     if (spp > 0 && time_budget > 0.0) throw ParameterError("render: give either --spp or --time, not both");
     check_output_path(out_path);
+    check_not_an_input(out_path, {scene_path, resume_path});
 
     // Resuming continues the previous render's sample sequence, so the merged
-    // image equals one longer render.
-    // Read and checked before rendering, so that a bad entry cannot cost the new samples.
+    // image equals one longer render. Everything about it is checked before
+    // rendering, so that a bad entry cannot cost the new samples.
     StoredRender previous;
-    if (!resume_path.empty()) previous = read_stored_render(resume_path);
+    if (!resume_path.empty()) {
+        previous = read_stored_render(resume_path);
+        if (previous.ranges.size() != 1)
+            throw InputError(resume_path + ": merged from renders with different seeds (sample_ranges " +
+                             format_sample_ranges(previous.ranges) +
+                             "), so it holds no single sample sequence to continue; render more with a new seed and "
+                             "merge the parts (gdr merge)");
+    }
 
     const auto t_load = std::chrono::steady_clock::now();
     SceneFile sf = load_scene_file(scene_path);
+    for (const std::string& s : scene_sets) apply_scene_setting(sf, s);
+    if (width > 0 || height > 0) set_resolution(sf, width, height);
     const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
-    const std::string name = integrator_name.empty() ? sf.defaults.integrator : integrator_name;
-    // Messages about a parameter name where it came from: the scene file, and
-    // the --set assignments when there are any (a typo may be in either).
-    std::string origin = sf.defaults.params.context();
+    check_not_an_input(out_path, sf.inputs);
+
+    // A resumed render is continued with its own integrator and parameters;
+    // --integrator and --set may only repeat them.
+    const std::string name = !integrator_name.empty() ? integrator_name
+                             : !resume_path.empty()   ? previous.fb.metadata().at("integrator")
+                                                      : sf.defaults.integrator;
+    std::string origin = resume_path.empty() ? sf.defaults.params.context() : resume_path + " (integrator_params)";
     for (size_t i = 0; i < sets.size(); ++i) origin += (i ? ", --set " : " with --set ") + sets[i];
     Params params(origin);
-    for (const auto& [k, v] : sf.defaults.params.values()) params.set(k, v);
+    if (resume_path.empty())
+        for (const auto& [k, v] : sf.defaults.params.values()) params.set(k, v);
+    else {
+        const Params stored = stored_params(previous);
+        for (const auto& [k, v] : stored.values()) params.set(k, v);
+    }
     for (const auto& s : sets) params.set_from_text(s);
     auto integrator = integrator_registry().create(name, params);
 
+    const auto& cam = sf.scene->camera();
+    RenderIdentity identity;
+    identity.integrator = name;
+    identity.params = integrator->describe();
+    identity.width = cam.width(), identity.height = cam.height();
+    identity.scene = std::filesystem::absolute(scene_path).string();
+    identity.scene_hash = sf.content_hash;
+
     RenderSettings st;
-    st.spp = spp > 0 ? spp : sf.defaults.spp;
-    st.time_budget = time_budget;
     st.threads = threads;
     st.seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
     st.cancel = &g_interrupted;
-    if (!resume_path.empty()) {
-        const auto& m = previous.fb.metadata();
-        if (m.at("integrator") != name)
-            throw InputError(resume_path + ": rendered with integrator '" + m.at("integrator") + "', not '" + name + "'");
-        if (m.count("integrator_params") && m.at("integrator_params") != integrator->describe())
-            throw InputError(resume_path + ": rendered with other integrator parameters:\n" + m.at("integrator_params"));
+    st.abort = &g_abort;
+    uint64_t target_spp = 0;  // what the file records as asked for
+    double target_time = 0.0;
+    if (resume_path.empty()) {
+        st.spp = spp > 0 ? spp : sf.defaults.spp;
+        st.time_budget = time_budget;
+        if (time_budget > 0.0) target_time = time_budget;
+        else target_spp = uint64_t(st.spp);
+    } else {
+        check_same_render(identity_of(previous), resume_path, identity, scene_path);
         if (seed >= 0 && uint64_t(seed) != previous.seed)
-            throw InputError(resume_path + ": rendered with seed " + m.at("seed") + ", not " + std::to_string(seed));
+            throw InputError(resume_path + ": rendered with seed " + std::to_string(previous.seed) + ", not " +
+                             std::to_string(seed));
         st.seed = previous.seed;
         st.first_sample = (long long)(previous.first_sample + previous.spp);
+        // --spp and --time give a new total; without them the stored target is finished.
+        const auto nothing_left = [&](const std::string& what) {
+            say("{}: already holds {}; nothing to render (give --spp N or --time T for a new total)\n", resume_path, what);
+        };
+        if (spp > 0) {
+            if (uint64_t(spp) <= previous.spp)
+                throw ParameterError(fmt::format("--spp {} is the new total, but {} already holds {} spp", spp,
+                                                 resume_path, previous.spp));
+            st.spp = spp - (long long)previous.spp;
+            target_spp = uint64_t(spp);
+        } else if (time_budget > 0.0) {
+            if (time_budget <= previous.seconds)
+                throw ParameterError(fmt::format("--time {} is the new total, but {} already took {:.3f} s", time_budget,
+                                                 resume_path, previous.seconds));
+            st.time_budget = time_budget - previous.seconds;
+            target_time = time_budget;
+        } else if (previous.target_spp > 0) {
+            if (previous.target_spp <= previous.spp) {
+                nothing_left(fmt::format("its target of {} spp", previous.target_spp));
+                return 0;
+            }
+            st.spp = (long long)(previous.target_spp - previous.spp);
+            target_spp = previous.target_spp;
+        } else if (previous.time_budget > 0.0) {
+            if (previous.time_budget <= previous.seconds) {
+                nothing_left(fmt::format("its target of {} s", previous.time_budget));
+                return 0;
+            }
+            st.time_budget = previous.time_budget - previous.seconds;
+            target_time = previous.time_budget;
+        } else {
+            throw ParameterError(resume_path + " records no target sample count or time: give --spp N (the new total) "
+                                 "or --time T");
+        }
     }
 
-    const auto& cam = sf.scene->camera();
     const auto& ss = sf.scene->stats();
-    fmt::print(stderr, "scene {}: {} triangles ({} degenerate skipped), {} emitting, {}x{}, loaded in {:.2f} s\n",
-               scene_path, ss.triangles, ss.degenerate_skipped, ss.emitters, cam.width(), cam.height(), load_s);
-    if (!sf.scene->has_lights()) fmt::print(stderr, "warning: the scene has no emitters; the image will be black\n");
+    say("scene {}: {} triangles ({} degenerate skipped), {} emitting, {}x{}, loaded in {:.2f} s\n", scene_path,
+        ss.triangles, ss.degenerate_skipped, ss.emitters, cam.width(), cam.height(), load_s);
+    // Per mesh, so that a truncated file shows.
+    for (const MeshStats& m : sf.meshes) say("  {}: {} triangles\n", m.file, m.triangles);
+    if (!sf.scene->has_lights()) say("warning: the scene has no emitters; the image will be black\n");
+    if (!resume_path.empty())
+        say("resuming {}: {} spp held, {}\n", resume_path, previous.spp,
+            st.time_budget > 0.0 ? fmt::format("{:.3f} s more", st.time_budget) : fmt::format("{} spp more", st.spp));
 
     g_interrupted = false;
+    g_abort = false;
     g_signal = 0;
-    auto old_int = std::signal(SIGINT, on_stop_signal);
-    auto old_term = std::signal(SIGTERM, on_stop_signal);
-    ProgressPrinter printer;
+    struct SignalScope {
+        using Handler = void (*)(int);
+        Handler old_int = std::signal(SIGINT, on_stop_signal);
+        Handler old_term = std::signal(SIGTERM, on_stop_signal);
+        ~SignalScope() {
+            std::signal(SIGINT, old_int);
+            std::signal(SIGTERM, old_term);
+        }
+    };
     FrameBuffer fb;
-    RenderStats rs = integrator->render(*sf.scene, st, fb, [&](const Progress& p) { printer(p); });
-    printer.finish();
-    std::signal(SIGINT, old_int);
-    std::signal(SIGTERM, old_term);
+    RenderStats rs;
+    {
+        SignalScope signals;
+        ProgressPrinter printer;
+        try {
+            rs = integrator->render(*sf.scene, st, fb, [&](const Progress& p) { printer(p); });
+        } catch (const Interrupted& e) {
+            printer.finish();
+            say("stopped: {}\n", e.what());
+            return 128 + (g_signal ? g_signal.load() : SIGINT);
+        }
+        printer.finish();
+    }
 
+    const bool interrupted = g_interrupted || g_abort;
     auto& meta = fb.metadata();
     meta["integrator"] = name;
-    meta["scene"] = std::filesystem::absolute(scene_path).string();
+    meta["scene"] = identity.scene;
+    if (!identity.scene_hash.empty()) meta["scene_hash"] = identity.scene_hash;
     meta["render_seconds"] = fmt::format("{:.3f}", rs.seconds);
-    meta["time_budget"] = fmt::format("{}", time_budget);
-    meta["gdr_version"] = "0.1.0";
-    meta["interrupted"] = g_interrupted ? "true" : "false";
-    if (!resume_path.empty()) {
-        merge_renders(previous.fb, fb);
-        integrator->update_merged(previous.fb);
-        // The merged image is as complete as its last part.
-        previous.fb.metadata()["interrupted"] = meta["interrupted"];
-        previous.fb.metadata()["render_seconds"] = fmt::format("{:.3f}", previous.seconds + rs.seconds);
-        fb = std::move(previous.fb);
+    meta["time_budget"] = fmt::format("{}", st.time_budget);
+    if (st.time_budget <= 0.0) meta["target_spp"] = std::to_string(st.first_sample + st.spp);
+    meta["sample_ranges"] = format_sample_ranges({{st.seed, uint64_t(st.first_sample), uint64_t(rs.spp)}});
+    meta["gdr_version"] = version();
+    meta["interrupted"] = interrupted ? "true" : "false";
+    // From here on a failure must not lose the samples: the new part alone is
+    // a valid render (gdr merge or --resume take it) and goes to the rescue file.
+    try {
+        if (!resume_path.empty()) {
+            FrameBuffer merged = previous.fb;
+            merge_renders(merged, fb);
+            integrator->update_merged(merged);
+            auto& mm = merged.metadata();
+            // The merged image is as complete as its last part.
+            mm["interrupted"] = meta["interrupted"];
+            mm["render_seconds"] = fmt::format("{:.3f}", previous.seconds + rs.seconds);
+            std::vector<SampleRange> ranges = previous.ranges;
+            ranges.push_back({st.seed, uint64_t(st.first_sample), uint64_t(rs.spp)});
+            mm["sample_ranges"] = format_sample_ranges(normalized_ranges(ranges));
+            mm["time_budget"] = fmt::format("{}", target_time);
+            if (target_spp > 0) mm["target_spp"] = std::to_string(target_spp);
+            else mm.erase("target_spp");
+            if (!identity.scene_hash.empty()) mm["scene_hash"] = identity.scene_hash;
+            mm["gdr_version"] = version();
+            fb = std::move(merged);
+        }
+    } catch (const Error& e) {
+        write_exr_or_rescue(rescue_path(), fb);
+        throw RuntimeFailure(std::string(e.what()) + "\nthe new samples were saved to " + rescue_path() +
+                             " (gdr merge accepts it)");
     }
     const std::string preview = write_render(out_path, fb, float(exposure));
 
-    fmt::print(stderr, "{} {} spp in {:.2f} s: {:.2f} M samples/s, {:.2f} M rays/s\n",
-               g_interrupted ? "interrupted after" : "rendered", rs.spp, rs.seconds,
-               rs.samples / std::max(1e-9, rs.seconds) * 1e-6, rs.rays / std::max(1e-9, rs.seconds) * 1e-6);
+    say("{} {} spp in {:.2f} s: {:.2f} M samples/s, {:.2f} M rays/s\n", interrupted ? "interrupted after" : "rendered",
+        rs.spp, rs.seconds, rs.samples / std::max(1e-9, rs.seconds) * 1e-6, rs.rays / std::max(1e-9, rs.seconds) * 1e-6);
     if (rs.nonfinite) {
         std::string where;
         for (auto [x, y] : rs.nonfinite_pixels) where += fmt::format(" ({}, {})", x, y);
-        fmt::print(stderr, "warning: {} NaN/Inf samples were dropped, first at pixels{}\n", rs.nonfinite, where);
+        say("warning: {} NaN/Inf samples were dropped, first at pixels{}\n", rs.nonfinite, where);
     } else {
-        fmt::print(stderr, "no NaN/Inf samples\n");
+        say("no NaN/Inf samples\n");
     }
-    fmt::print(stderr, "wrote {} (layers:", out_path);
-    for (const auto& n : fb.names()) fmt::print(stderr, " {}", n);
-    fmt::print(stderr, "){}\n", preview.empty() ? "" : " and " + preview);
-    return g_interrupted ? 128 + (g_signal ? g_signal.load() : SIGINT) : 0;  // the shell's convention
+    std::string layers;
+    for (const auto& n : fb.names()) layers += " " + n;
+    say("wrote {} (layers:{}){}\n", out_path, layers, preview.empty() ? "" : " and " + preview);
+    if (g_abort && fb.has("dx") && !fb.has("reconstruction_l1") && !fb.has("reconstruction_l2"))
+        say("the reconstructions were skipped to stop at once: gdr reconstruct {} computes one, and --resume or "
+            "gdr merge recompute them\n", out_path);
+    return interrupted ? 128 + (g_signal ? g_signal.load() : SIGINT) : 0;  // the shell's convention
 }
 
 int info(const std::vector<std::string>& args) {
-    if (args.size() != 1) throw ParameterError("info: expected one EXR file\n" + usage());
+    if (args.size() == 1 && (args[0] == "-h" || args[0] == "--help")) return print_usage("info");
+    if (args.size() != 1) throw ParameterError("info: expected one EXR file\n" + usage("info"));
     const FrameBuffer fb = read_exr(args[0]);
+    // A file that claims to be a render must hold what every render holds:
+    // a damaged header otherwise reads as an image of zeros with no settings.
+    if (looks_like_render(fb)) {
+        check_render_settings(fb, args[0]);
+        (void)read_stored_render(args[0]);
+    }
+    size_t name_w = 0, key_w = 0;
+    for (const auto& n : fb.names()) name_w = std::max(name_w, n.size());
+    for (const auto& [k, v] : fb.metadata()) key_w = std::max(key_w, k.size());
     fmt::print("{}: {}x{}\nlayers:\n", args[0], fb.width(), fb.height());
     for (const auto& n : fb.names()) {
         const Image& img = fb.get(n);
         double mean = 0.0;
         for (float v : img.values()) mean += v;
-        mean /= std::max<size_t>(1, img.values().size());
-        fmt::print("  {:<22} {} channel{}  mean {:.6g}\n", n, img.channels(), img.channels() > 1 ? "s" : "", mean);
+        mean /= double(std::max<size_t>(1, img.values().size()));
+        fmt::print("  {:<{}}  {} channel{:<1}  mean {:.6g}\n", n, name_w, img.channels(), img.channels() > 1 ? "s" : "",
+                   mean);
     }
     if (!fb.metadata().empty()) {
         fmt::print("settings:\n");
         for (const auto& [k, v] : fb.metadata()) {
-            std::string vv = v;
-            for (auto& c : vv)
-                if (c == '\n') c = ' ';
-            fmt::print("  {} = {}\n", k, vv);
+            // Multi-line values (integrator parameters) continue under their first line.
+            std::string vv;
+            for (char c : v) vv += c == '\n' ? "\n  " + std::string(key_w + 3, ' ') : std::string(1, c);
+            while (!vv.empty() && vv.back() == ' ') vv.pop_back();
+            while (!vv.empty() && vv.back() == '\n') vv.pop_back();
+            fmt::print("  {:<{}} = {}\n", k, key_w, vv);
         }
     }
     return 0;
 }
 
 int list_plugins() {
-    fmt::print("integrators:\n");
-    for (const auto& n : integrator_registry().names()) fmt::print("  {:<18} {}\n", n, integrator_registry().description(n));
+    // Each integrator's parameters with their defaults, as its describe() states them.
+    const auto defaults = [](const std::string& name) {
+        try {
+            std::string d = integrator_registry().create(name, Params("defaults"))->describe(), out;
+            for (char c : d) out += c == '\n' ? ' ' : c;
+            while (!out.empty() && out.back() == ' ') out.pop_back();
+            return out;
+        } catch (const Error&) {
+            return std::string();
+        }
+    };
+    fmt::print("integrators (gdr render --integrator NAME, parameters with --set key=value):\n");
+    for (const auto& n : integrator_registry().names()) {
+        fmt::print("  {:<18} {}\n", n, integrator_registry().description(n));
+        const std::string d = defaults(n);
+        if (!d.empty()) fmt::print("  {:<18} defaults: {}\n", "", d);
+    }
+    fmt::print("scene settings (gdr render --set key=value): fov (degrees, along the camera's fov axis)\n");
     fmt::print("shift mappings (gpt shift=NAME):\n");
     for (const auto& n : shift_registry().names()) fmt::print("  {:<18} {}\n", n, shift_registry().description(n));
     fmt::print("reconstructors (gdr reconstruct --method NAME):\n");

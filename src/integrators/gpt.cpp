@@ -5,6 +5,7 @@
 
 #include "gdr/integrators/gpt.h"
 
+#include <fmt/core.h>
 #include <tbb/parallel_for.h>
 
 #include "gdr/integrators/path_dims.h"
@@ -246,13 +247,13 @@ public:
     }
 
     std::string describe() const override {
-        return "shift=" + shift_name_ + "\nthreshold=" + std::to_string(config_.threshold) +
+        return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_depth) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
                "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" +
                (solve_l1_ ? (solve_l2_ ? "l1+l2" : "l1") : (solve_l2_ ? "l2" : "none")) +
-               "\nalpha=" + std::to_string(alpha_) + "\n";
+               "\nalpha=" + fmt::format("{}", alpha_) + "\n";
     }
 
 protected:
@@ -372,7 +373,7 @@ protected:
         out.set("primal_variance", primal_both_ ? std::move(primal_var) : std::move(im[5]));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
-        reconstruct_layers(out);
+        if (acc.derived) reconstruct_layers(out);
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));

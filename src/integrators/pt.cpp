@@ -158,7 +158,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
 }
 
 void register_pt(Registry<Integrator>& r) {
-    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee, batch)",
+    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee, batch, simd)",
           [](const Params& p) { return std::make_unique<PathTracer>(p); });
 }
 

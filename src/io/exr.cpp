@@ -204,6 +204,11 @@ FrameBuffer read_exr(const std::string& path) {
                 else line += ch;
             }
             if (!line.empty()) order.push_back(line);
+            // The writer listed every layer it wrote: one that is gone was lost with part of the file.
+            for (const std::string& layer : order)
+                if (std::none_of(groups.begin(), groups.end(), [&](const auto& g) { return g.layer == layer; }))
+                    throw InputError(path + ": layer '" + layer + "' is listed in the header but has no channels "
+                                     "(the file is damaged)");
             auto rank = [&](const ChannelGroup& g) {
                 const auto it = std::find(order.begin(), order.end(), g.layer);
                 return size_t(it - order.begin());

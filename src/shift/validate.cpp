@@ -145,6 +145,7 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
         Sampler s(SampleKey{o.seed, uint32_t(px), uint32_t(py), uint32_t(i)});
         s.set_dimension(dims::kFilm);
         trace_camera_path(scene, Vec2(float(px), float(py)) + s.next2d(), s, topt, x);
+        ++rep.sampled;
         if (x.size() < 2) continue;
         ++rep.base_paths;
         shift_camera_path(scene, shift, config, x, right, y);
@@ -210,7 +211,10 @@ std::string ShiftReport::summary() const {
     std::ostringstream os;
     const auto pct = [](size_t a, size_t b) { return b ? 100.0 * double(a) / double(b) : 100.0; };
     os.precision(4);
-    os << "shift " << shift << ": " << base_paths << " base paths, failure rate " << 100.0 * failure_rate() << "%\n"
+    os << "shift " << shift << ": " << base_paths << " base paths of " << sampled << " sampled";
+    // A camera path that leaves the scene or ends at its first vertex has nothing to shift.
+    if (sampled > base_paths) os << " (" << sampled - base_paths << " left the scene or ended at their first vertex)";
+    os << ", failure rate " << 100.0 * failure_rate() << "%\n"
        << "  reversibility: " << reverse_ok << " / " << reverse_checked << " (" << pct(reverse_ok, reverse_checked)
        << "%) returned to the base path; " << reverse_failed_shift << " inverse shifts failed\n"
        << "  jacobian: " << jacobian_ok << " / " << jacobian_checked << " (" << pct(jacobian_ok, jacobian_checked)

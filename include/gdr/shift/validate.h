@@ -24,7 +24,8 @@ struct ValidateOptions {
 /// The outcome of validating one shift on one scene.
 struct ShiftReport {
     std::string shift;                 ///< Name of the shift.
-    size_t base_paths = 0;             ///< Base paths with at least two vertices.
+    size_t sampled = 0;                ///< Camera paths sampled (ValidateOptions::paths).
+    size_t base_paths = 0;             ///< ...with at least two vertices: the ones a shift can act on.
     size_t complete = 0;               ///< Offsets as long as their base path (the shift never failed).
     size_t reverse_checked = 0;        ///< Complete offsets shifted back.
     size_t reverse_ok = 0;             ///< ...that returned to their base path.

@@ -1,0 +1,166 @@
+// gdr compare: the error of one image against a reference, on the layers a
+// user means. A gradient-domain render holds a noisy primal ("color") beside
+// its reconstruction; comparing the former by default once reported the
+// error of an image nobody looks at, so the final image is the default and
+// every choice made is printed before the numbers.
+
+#include <string>
+#include <vector>
+
+#include <fmt/core.h>
+
+#include "gdr/cli/commands.h"
+#include "gdr/core/error.h"
+#include "gdr/io/exr.h"
+#include "gdr/metrics.h"
+
+namespace gdr::cli {
+
+namespace {
+
+// The layer a file's PNG preview shows (preview_layer()); an EXR without layers has none.
+std::string final_layer(const FrameBuffer& fb, const std::string& path) {
+    if (fb.names().empty()) throw InputError(path + ": holds no image layers");
+    return preview_layer(fb);
+}
+
+std::string layer_list(const FrameBuffer& fb) {
+    std::string s;
+    for (const auto& n : fb.names()) s += (s.empty() ? "" : ", ") + n;
+    return s;
+}
+
+/// One side of the comparison: the file, the layer chosen and why.
+struct Side {
+    std::string role;    // "image" or "reference"
+    std::string path;
+    std::string layer;
+    std::string reason;
+    Image img;
+    std::string label() const { return role + " " + path + " layer '" + layer + "'"; }
+};
+
+/// How many times `big` is `small`, as text for an error ("3" or "96/33").
+std::string ratio_text(int big, int small) {
+    if (small > 0 && big % small == 0) return std::to_string(big / small);
+    return std::to_string(big) + "/" + std::to_string(small);
+}
+
+std::string size_text(const Image& im) { return std::to_string(im.width()) + "x" + std::to_string(im.height()); }
+
+/// Brings both sides to one resolution; returns a line saying what was done ("" if nothing).
+std::string match_sizes(Side& a, Side& b, int explicit_factor) {
+    const Image &ia = a.img, &ib = b.img;
+    const std::string sizes =
+        a.role + " " + a.path + " is " + size_text(ia) + " but " + b.role + " " + b.path + " is " + size_text(ib);
+    const auto bad_factor = [&] {
+        return ParameterError(fmt::format("--downsample {}: {}; the larger must be exactly {} times the smaller in "
+                                          "both dimensions",
+                                          explicit_factor, sizes, explicit_factor));
+    };
+    if (ia.width() == ib.width() && ia.height() == ib.height()) {
+        if (explicit_factor > 1) throw bad_factor();
+        return "";
+    }
+    const bool a_larger = ia.width() >= ib.width() && ia.height() >= ib.height();
+    const bool b_larger = ib.width() >= ia.width() && ib.height() >= ia.height();
+    Side& big = a_larger ? a : b;
+    const Side& small = a_larger ? b : a;
+    if (explicit_factor > 0) {
+        if (!(a_larger || b_larger) || big.img.width() != explicit_factor * small.img.width() ||
+            big.img.height() != explicit_factor * small.img.height())
+            throw bad_factor();
+    } else if (!(a_larger || b_larger)) {
+        throw InputError(sizes + ": one is wider, the other taller, so no downsampling can match them");
+    } else {
+        const int sw = small.img.width(), sh = small.img.height(), bw = big.img.width(), bh = big.img.height();
+        if (sw == 0 || sh == 0 || bw % sw != 0 || bh % sh != 0 || bw / sw != bh / sh)
+            throw InputError(sizes + ": they differ by " + ratio_text(bw, sw) + " horizontally and " +
+                             ratio_text(bh, sh) +
+                             " vertically, not by one integer factor in both dimensions, so neither can be "
+                             "downsampled to the other");
+    }
+    const int k = big.img.width() / small.img.width();
+    const std::string from = size_text(big.img);
+    big.img = box_downsample(big.img, k);
+    return fmt::format("downsampled the {} from {} to {} (box filter, factor {}{}) to match the {}\n", big.role, from,
+                       size_text(big.img), k, explicit_factor > 0 ? ", --downsample" : ", automatically", small.role);
+}
+
+/// Brings both sides to one channel count where that has an obvious meaning;
+/// returns a line saying what was done ("" if nothing).
+std::string match_channels(Side& a, Side& b) {
+    const int ca = a.img.channels(), cb = b.img.channels();
+    if (ca == cb) return "";
+    Side& fewer = ca < cb ? a : b;
+    Side& more = ca < cb ? b : a;
+    const int cf = fewer.img.channels(), cm = more.img.channels();
+    // Grey is the same value in R, G and B; alpha is coverage, not radiance.
+    Side* change = cf == 1 && cm == 3 ? &fewer : cf == 3 && cm == 4 ? &more : nullptr;
+    if (!change)
+        throw InputError(fmt::format("{} has {} channels but {} has {}: only 1 and 3 (grey broadcast) or 4 and 3 "
+                                     "(alpha dropped) can be compared",
+                                     a.label(), ca, b.label(), cb));
+    Image rgb(change->img.width(), change->img.height(), 3);
+    for (int y = 0; y < rgb.height(); ++y)
+        for (int x = 0; x < rgb.width(); ++x) rgb.set_rgb(x, y, change->img.rgb(x, y));
+    change->img = std::move(rgb);
+    return cf == 1 ? "broadcast the " + fewer.role + "'s grey channel to RGB to match the " + more.role + "\n"
+                   : "dropped the alpha channel of the " + more.role + " to match the " + fewer.role + "'s RGB\n";
+}
+
+}  // namespace
+
+int compare(const std::vector<std::string>& args) {
+    ArgReader a{args};
+    std::string img_path, ref_path, layer, ref_layer;
+    int factor = 0;  // 0: automatic
+    while (a.more()) {
+        const std::string o = a.next();
+        if (o == "-h" || o == "--help") {
+            fmt::print("{}", usage("compare"));
+            return 0;
+        } else if (o == "--layer") layer = a.value(o);
+        else if (o == "--ref-layer") ref_layer = a.value(o);
+        else if (o == "--downsample") factor = int(a.int_value(o, 1, 1 << 16));
+        else if (!o.empty() && o[0] == '-') throw ParameterError("compare: unknown option '" + o + "'\n" + usage("compare"));
+        else if (img_path.empty()) img_path = o;
+        else if (ref_path.empty()) ref_path = o;
+        else throw ParameterError("compare: unexpected argument '" + o + "'");
+    }
+    if (ref_path.empty()) throw ParameterError("compare: expected IMAGE.exr REFERENCE.exr\n" + usage("compare"));
+
+    const FrameBuffer img_fb = read_exr(img_path), ref_fb = read_exr(ref_path);
+    Side img{"image", img_path, layer, "--layer", {}};
+    if (layer.empty()) img.layer = final_layer(img_fb, img_path), img.reason = "its final image";
+    else if (!img_fb.has(layer))
+        throw InputError("--layer '" + layer + "': " + img_path + " has no layer '" + layer + "' (layers: " +
+                         layer_list(img_fb) + ")");
+    Side ref{"reference", ref_path, ref_layer, "--ref-layer", {}};
+    if (!ref_layer.empty()) {
+        if (!ref_fb.has(ref_layer))
+            throw InputError("--ref-layer '" + ref_layer + "': " + ref_path + " has no layer '" + ref_layer +
+                             "' (layers: " + layer_list(ref_fb) + ")");
+    } else if (!layer.empty() && ref_fb.has(layer)) {
+        ref.layer = layer, ref.reason = "--layer, which it has too";
+    } else {
+        // A PT reference has no "primal": the user wants it held against the reference's image.
+        ref.layer = final_layer(ref_fb, ref_path);
+        ref.reason = layer.empty() ? "its final image" : "its final image; it has no layer '" + layer + "'";
+    }
+    img.img = img_fb.get(img.layer);
+    ref.img = ref_fb.get(ref.layer);
+    // Before any resampling, so that the pixel named is one of the file's.
+    require_finite(img.img, img.label());
+    require_finite(ref.img, ref.label());
+
+    std::string out = fmt::format("image:         {} layer '{}' ({})\n", img.path, img.layer, img.reason);
+    out += fmt::format("reference:     {} layer '{}' ({})\n", ref.path, ref.layer, ref.reason);
+    out += match_sizes(img, ref, factor);
+    out += match_channels(img, ref);
+    out += compare_report(img.img, ref.img);
+    fmt::print("{}", out);
+    return 0;
+}
+
+}  // namespace gdr::cli
