@@ -9,6 +9,7 @@
 #include <thread>
 #include <unistd.h>
 #include <algorithm>
+#include <cfloat>
 
 #include "gdr/io/exr.h"
 #include "gdr/metrics.h"
@@ -523,4 +524,223 @@ TEST_CASE("poisson-l1 agrees with the reference implementation's own L1 algorith
     INFO("relMSE fast L1 " << fast << ", L2 " << l2);
     REQUIRE(fast < 5e-6);
     REQUIRE(l2 > 5e-5);
+}
+
+namespace {
+
+/// A 16x16 image of constant 0.4 with exact (zero) gradients except one dx
+/// sample of value `outlier` at pixel (7, 8), in every channel.
+GradientFrame constant_with_outlier(int channels, float outlier) {
+    GradientFrame f;
+    f.primal = Image(16, 16, channels, 0.4f), f.dx = Image(16, 16, channels), f.dy = Image(16, 16, channels);
+    for (int ch = 0; ch < channels; ++ch) f.dx.at(7, 8, ch) = outlier;
+    return f;
+}
+
+/// Largest |v - expect| over an image, or +inf if any value is NaN or Inf.
+double max_abs_error(const Image& img, float expect) {
+    double e = 0;
+    for (float v : img.values()) e = std::isfinite(v) ? std::max(e, double(std::abs(v - expect))) : INFINITY;
+    return e;
+}
+
+}  // namespace
+
+TEST_CASE("default L1 ignores one gradient outlier of any magnitude", "[reconstruct][robust]") {
+    // The exact L1 minimiser is the constant 0.4 whatever the outlier's size:
+    // following it would cost alpha per pixel moved plus the other three
+    // gradient rows of the pixel, more than the one row it would satisfy.
+    // Tolerance 1e-3 (absolute, 0.25% of the value): float IRLS from a clean
+    // start lands within ~4e-7; from the exact L2 start, which the outlier
+    // displaces, an outlier of 1e4 leaves errors of 1.5 to 2, 1e6 of 200 and
+    // more, and 1e30 NaN.
+    // Both ways the library's callers run it: the registry with default
+    // parameters (gdr reconstruct) and the gpt integrator's call (alpha set,
+    // direct emitters present).
+    Params gpt_params("gpt");
+    gpt_params.set("alpha", 0.2);
+    for (int channels : {1, 3})
+        for (float magnitude : {1e2f, 1e4f, 1e6f, 1e10f, 1e30f, FLT_MAX})
+            for (float sign : {1.f, -1.f}) {
+                const GradientFrame f = constant_with_outlier(channels, sign * magnitude);
+                const Image direct(16, 16, channels, 0.f);
+                const Image def = reconstruct("poisson-l1", Params(), f.buffers());
+                const Image gpt = reconstruct("poisson-l1", gpt_params,
+                                              GradientBuffers{&f.primal, &f.dx, &f.dy, &direct});
+                double mean = 0;
+                for (float v : def.values()) mean += v;
+                mean /= double(def.values().size());
+                INFO(channels << " channel(s), outlier " << sign * magnitude << ": max error " << max_abs_error(def, 0.4f)
+                              << " (gpt call " << max_abs_error(gpt, 0.4f) << "), mean " << mean);
+                CHECK(max_abs_error(def, 0.4f) < 1e-3);
+                CHECK(max_abs_error(gpt, 0.4f) < 1e-3);
+            }
+}
+
+namespace {
+
+/// A reconstructor that returns the primal with one value replaced: the
+/// deliberately wrong method the result check must catch.
+class OneValue final : public Reconstructor {
+public:
+    OneValue(int x, int y, int channel, float value) : x_(x), y_(y), c_(channel), v_(value) {}
+    std::string describe() const override { return "test=one-value\n"; }
+
+protected:
+    Image solve(const GradientBuffers& in) const override {
+        Image out = *in.primal;
+        out.at(x_, y_, c_) = v_;
+        return out;
+    }
+
+private:
+    int x_, y_, c_;
+    float v_;
+};
+
+/// Message of a RuntimeFailure that names a pixel and channel.
+const auto kNamesPixel = Catch::Matches(".*at pixel \\(\\d+, \\d+\\) channel \\d+.*");
+
+}  // namespace
+
+TEST_CASE("the result check names the pixel and channel of a NaN or Inf from any reconstructor", "[reconstruct][robust]") {
+    const Image c = test_image(8, 6, 3, 151);
+    auto [gx, gy] = gradients_of(c);
+    const GradientBuffers in{&c, &gx, &gy, nullptr};
+    for (float bad : {std::nanf(""), INFINITY, -INFINITY}) {
+        INFO("value " << bad);
+        REQUIRE_THROWS_AS(OneValue(5, 3, 2, bad).reconstruct(in), RuntimeFailure);
+        REQUIRE_THROWS_WITH(OneValue(5, 3, 2, bad).reconstruct(in),
+                            Catch::Contains("at pixel (5, 3) channel 2"));
+    }
+    // A finite value passes unchanged, so the check is not simply always on.
+    REQUIRE(OneValue(5, 3, 2, 7.f).reconstruct(in).at(5, 3, 2) == 7.f);
+    // Overflow in adding the direct emitters is caught too (FLT_MAX + FLT_MAX = Inf).
+    Image huge = c, direct(8, 6, 3, 0.f);
+    huge.at(1, 4, 0) = FLT_MAX, direct.at(1, 4, 0) = FLT_MAX;
+    REQUIRE_THROWS_WITH(OneValue(0, 0, 0, 1.f).reconstruct(GradientBuffers{&huge, &gx, &gy, &direct}),
+                        Catch::Contains("at pixel (1, 4) channel 0"));
+}
+
+TEST_CASE("L2 follows a huge outlier without NaN or Inf, and throws where the answer is beyond float", "[reconstruct][robust]") {
+    // L2 is linear, so the outlier legitimately dominates: the result must
+    // be the outlier's (finite) response, not a clipped or NaN one.
+    const GradientFrame a = constant_with_outlier(3, 1e30f), b = constant_with_outlier(3, FLT_MAX);
+    const Image xa = reconstruct("poisson-l2", Params(), a.buffers());
+    const Image xb = reconstruct("poisson-l2", Params(), b.buffers());
+    REQUIRE(std::isfinite(max_abs_error(xa, 0.4f)));
+    REQUIRE(max_abs_error(xa, 0.4f) > 1e28);
+    // FLT_MAX overflows the direct solve's sums, so this goes through the
+    // rescaled retry; linearity says it is the 1e30 answer times FLT_MAX /
+    // 1e30 (the colour's 0.4 is far below float resolution at 1e37). 1e-5
+    // relative: float rounding of two solves (~1e-6).
+    Image expect = xa;
+    for (auto& v : expect.values()) v = float(double(v) * (double(FLT_MAX) / 1e30));
+    REQUIRE(rel_error(xb, expect) < 1e-5);
+    // Gradients of FLT_MAX along every row: a ramp to 15 FLT_MAX, not
+    // representable, so every solver must throw and say where.
+    GradientFrame ramp = constant_with_outlier(3, 0.f);
+    for (auto& v : ramp.dx.values()) v = FLT_MAX;
+    Params reference("test");
+    reference.set("preset", std::string("reference"));
+    REQUIRE_THROWS_AS(reconstruct("poisson-l2", Params(), ramp.buffers()), RuntimeFailure);
+    REQUIRE_THROWS_WITH(reconstruct("poisson-l2", Params(), ramp.buffers()), kNamesPixel);
+    // L1 may instead treat every such gradient as an outlier and follow the
+    // colour: either way, a finite image or an error naming the pixel.
+    for (const Params& p : {Params(), reference}) {
+        try {
+            const Image x = reconstruct("poisson-l1", p, ramp.buffers());
+            for (float v : x.values()) REQUIRE(std::isfinite(v));
+        } catch (const RuntimeFailure& e) {
+            REQUIRE_THAT(e.what(), kNamesPixel);
+        }
+    }
+}
+
+TEST_CASE("no solver returns NaN or Inf on inputs up to the float range", "[reconstruct][robust]") {
+    // Either every value is finite or the call throws RuntimeFailure naming
+    // a pixel. Without the scaling and guards, 15 of these 18 calls returned
+    // NaN or Inf (L2 too, wherever a value was FLT_MAX).
+    std::vector<std::pair<std::string, GradientFrame>> cases;
+    cases.push_back({"dx outlier 1e30", constant_with_outlier(3, 1e30f)});
+    cases.push_back({"dx outlier FLT_MAX", constant_with_outlier(3, FLT_MAX)});
+    for (auto [v, name] : {std::pair{1e30f, "1e30"}, std::pair{FLT_MAX, "FLT_MAX"}}) {
+        GradientFrame f = constant_with_outlier(3, 0.f);
+        f.primal.at(7, 8, 0) = v;
+        cases.push_back({std::string("primal outlier ") + name, f});
+    }
+    {
+        GradientFrame f = constant_with_outlier(3, 0.f);
+        for (auto& v : f.primal.values()) v = FLT_MAX;
+        cases.push_back({"primal all FLT_MAX", f});
+    }
+    {
+        GradientFrame f = constant_with_outlier(3, 0.f);
+        for (int x = 0; x < 16; ++x)
+            for (int ch = 0; ch < 3; ++ch) f.dx.at(x, 3, ch) = x % 2 ? -FLT_MAX : FLT_MAX;
+        cases.push_back({"alternating FLT_MAX gradients", f});
+    }
+    Params reference("test");
+    reference.set("preset", std::string("reference"));
+    for (const auto& [name, f] : cases)
+        for (const auto& [method, params] : {std::pair{"poisson-l2", Params()}, std::pair{"poisson-l1", Params()},
+                                             std::pair{"poisson-l1", reference}}) {
+            INFO(name << ", " << method << " " << params.has("preset"));
+            try {
+                const Image out = reconstruct(method, params, f.buffers());
+                CHECK(std::isfinite(max_abs_error(out, 0.f)));
+            } catch (const RuntimeFailure& e) {
+                CHECK_THAT(e.what(), kNamesPixel);
+            }
+        }
+    // Weighted CG with one weight near the float range: A p overflows. The
+    // solve must stop with a finite x and say so (it returned NaN / Inf).
+    const Image truth = test_image(13, 11, 3, 31);
+    auto [gx, gy] = gradients_of(truth);
+    const Image c = noisy(truth, 0.3f, 32), nx = noisy(gx, 0.2f, 33), ny = noisy(gy, 0.2f, 34);
+    RowWeights rw;
+    for (int i = 0; i < 13 * 11; ++i) rw.primal.push_back(1.f), rw.dx.push_back(i == 40 ? 1e36f : 1.f), rw.dy.push_back(1.f);
+    for (Preconditioner pre : {Preconditioner::none, Preconditioner::multigrid}) {
+        Image x = c;
+        CgOptions opt;
+        opt.max_iterations = 50, opt.preconditioner = pre;
+        const CgReport rep = poisson_weighted(problem(c, nx, ny), &rw, opt, x.data());
+        INFO("preconditioner " << int(pre));
+        REQUIRE(std::isfinite(max_abs_error(x, 0.f)));
+        REQUIRE(std::isfinite(rep.relative_residual));
+        REQUIRE(rep.breakdown);
+    }
+}
+
+TEST_CASE("IRLS gives an outlier gradient a tiny weight, never zero or NaN", "[reconstruct][robust]") {
+    // At x = primal only the outlier row has a residual (1e30): its
+    // reference weight eps / (1e30 + eps) is ~1e-32 of the others', which
+    // are 1 after normalisation to mean 1 (1% margin: the outlier's own share
+    // of the mean is 1 / 736). The bound 1e-9 is what matters: the row must
+    // barely pull.
+    const GradientFrame f = constant_with_outlier(3, 1e30f);
+    const PoissonProblem p = problem(f.primal, f.dx, f.dy);
+    const size_t outlier = 8 * 16 + 7;
+    const RowWeights at_primal = irls_weights(p, f.primal.data(), 0.01);
+    REQUIRE(at_primal.dx[outlier] > 0.f);
+    REQUIRE(at_primal.dx[outlier] < 1e-9f);
+    REQUIRE(at_primal.dx[outlier + 1] == Approx(1.0).epsilon(1e-2));
+    REQUIRE(at_primal.primal[outlier] == Approx(1.0).epsilon(1e-2));
+    // At the exact L2 solution the outlier has moved the pixels around it by
+    // up to ~1e29, so their rows' squared residuals exceed the float range.
+    // Every weight must still be finite and positive: a pixel all of whose
+    // rows get weight 0 is undetermined in the next solve (in plain float
+    // arithmetic they did, and the L1 solve divided by zero).
+    Image l2(16, 16, 3);
+    poisson_l2(p, l2.data());
+    const RowWeights at_l2 = irls_weights(p, l2.data(), 0.01);
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x) {
+            const size_t k = size_t(y) * 16 + x;
+            INFO("pixel (" << x << ", " << y << ")");
+            REQUIRE(std::isfinite(at_l2.primal[k]));
+            REQUIRE(at_l2.primal[k] > 0.f);
+            if (x + 1 < 16) REQUIRE((std::isfinite(at_l2.dx[k]) && at_l2.dx[k] > 0.f));
+            if (y + 1 < 16) REQUIRE((std::isfinite(at_l2.dy[k]) && at_l2.dy[k] > 0.f));
+        }
 }

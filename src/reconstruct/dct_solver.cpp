@@ -27,8 +27,11 @@
 #include <fftw3.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <bit>
 #include <cmath>
 #include <complex>
+#include <cstdint>
 #include <map>
 #include <mutex>
 #include <string>
@@ -193,7 +196,8 @@ DctSolver::~DctSolver() = default;
 int DctSolver::width() const { return impl_->plans->w; }
 int DctSolver::height() const { return impl_->plans->h; }
 
-void DctSolver::solve(const float* rhs, float* x, int channels, double a, double b, bool interleaved) {
+void DctSolver::solve(const float* rhs, float* x, int channels, double a, double b, bool interleaved,
+                      bool* all_finite) {
     if (channels < 1) throw ParameterError("DctSolver::solve: no channels");
     if (!(a >= 0) || !(b >= 0) || !std::isfinite(a) || !std::isfinite(b))
         throw ParameterError("DctSolver::solve: coefficients must be finite and non-negative");
@@ -289,10 +293,13 @@ void DctSolver::solve(const float* rhs, float* x, int channels, double a, double
         fftwf_execute_dft(cols == s.col_block ? s.col_inv : s.col_inv_tail, S + k0, S + k0);
     });
 
-    // 3. Inverse row transforms and scatter back to natural order.
+    // 3. Inverse row transforms and scatter back to natural order; the
+    // exponent bits of the values are OR-ed on the way (NaN / Inf: all ones).
+    std::vector<std::uint32_t> bad(all_finite ? row_blocks : 0, 0);
     tbb::parallel_for(0, row_blocks, [&](int task) {
         const int r0 = task * s.row_block;
         const int rows = std::min(s.row_block, h - r0);
+        std::uint32_t any = 0;
         for (int c = 0; c < channels; ++c) {
             float* v = real + c * s.real_plane;
             fftwf_execute_dft_c2r(rows == s.row_block ? s.row_inv : s.row_inv_tail,
@@ -301,9 +308,14 @@ void DctSolver::solve(const float* rhs, float* x, int channels, double a, double
                 float* out = x + element0(c, s.src_y[m1]);
                 const float* in = v + size_t(m1) * w;
                 for (int m2 = 0; m2 < w; ++m2) out[size_t(s.src_x[m2]) * stride] = in[m2];
+                if (all_finite)
+                    for (int m2 = 0; m2 < w; ++m2)
+                        any |= (std::bit_cast<std::uint32_t>(in[m2]) & 0x7f800000u) == 0x7f800000u;
             }
         }
+        if (all_finite) bad[task] = any;
     });
+    if (all_finite) *all_finite = std::find(bad.begin(), bad.end(), 1u) == bad.end();
 }
 
 }  // namespace gdr

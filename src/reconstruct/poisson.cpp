@@ -8,6 +8,15 @@
 // thread scheduling. The normal-equation right-hand side is never formed:
 // the CG residual b - A x is computed directly as P^T W (b - P x) from the
 // row residuals, which is one pass instead of three.
+//
+// Float range. The solvers work on copies divided by a power of two, which
+// is exact in IEEE arithmetic (the scaling commutes with every rounding, also
+// in sqrt_nonneg below), so results on ordinary inputs are bit for bit those
+// of unscaled solves. L1 divides by a robust scale of the data, so that its
+// squared residuals neither overflow nor underflow whatever the radiance
+// unit; L2 and weighted CG, being linear, are rescaled only when their input
+// is large enough to overflow. Every result is checked for NaN / Inf before
+// it is returned (check_finite_result).
 
 #include "gdr/reconstruct/poisson.h"
 
@@ -16,6 +25,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cfloat>
 #include <cstdint>
 #include <cmath>
 #include <string>
@@ -101,26 +111,136 @@ Shape shape_of(const PoissonProblem& p) {
     return {p.primal.width, p.primal.height, p.primal.channels, size_t(p.primal.width) * p.primal.height};
 }
 
-void to_planar(const Shape& s, const float* in, float* out) {
+/// Powers of two bounding the magnitudes of a problem's values (radiance).
+struct Magnitudes {
+    double robust = 1.0;  // >= the 99th percentile of the nonzero |values| (colour and used gradients); 1 if none
+    double max = 0.0;     // >= every |value|; +inf if one is NaN or Inf
+};
+
+/// One pass over primal, dx and dy (the used entries) building a histogram of
+/// float exponents. A percentile rather than the maximum, so that a few
+/// outliers (up to 1% of the values) cannot set the scale; exponent bins
+/// rather than a sort, so the pass costs about one read of the data.
+Magnitudes magnitudes(const PoissonProblem& p) {
+    const Shape s = shape_of(p);
+    const int blocks = (s.h + kBlockRows - 1) / kBlockRows;
+    using Histogram = std::array<std::uint64_t, 256>;
+    std::vector<Histogram> part(blocks);
+    tbb::parallel_for(0, blocks, [&](int b) {
+        // Four sub-histograms, so that consecutive values rarely wait for
+        // each other's increment of the same bin.
+        std::array<std::array<std::uint32_t, 256>, 4> sub{};
+        auto add = [&](const float* v, size_t count) {
+            size_t i = 0;
+            for (; i + 4 <= count; i += 4)
+                for (int k = 0; k < 4; ++k) ++sub[k][(std::bit_cast<std::uint32_t>(v[i + k]) >> 23) & 0xffu];
+            for (; i < count; ++i) ++sub[0][(std::bit_cast<std::uint32_t>(v[i]) >> 23) & 0xffu];
+        };
+        for (int y = b * kBlockRows; y < std::min(s.h, (b + 1) * kBlockRows); ++y) {
+            const size_t o = size_t(y) * s.w * s.c;
+            add(p.primal.data + o, size_t(s.w) * s.c);
+            add(p.dx.data + o, size_t(s.w - 1) * s.c);  // the unused last column is the row's tail
+            if (y + 1 < s.h) add(p.dy.data + o, size_t(s.w) * s.c);
+        }
+        for (int i = 0; i < 256; ++i) part[b][i] = std::uint64_t(sub[0][i]) + sub[1][i] + sub[2][i] + sub[3][i];
+    });
+    Histogram hist{};
+    for (const Histogram& h : part)
+        for (int i = 0; i < 256; ++i) hist[i] += h[i];
+    // Bin b (1..254) holds |v| in [2^(b-127), 2^(b-126)); bin 0 zeros and
+    // subnormals (no scale information), bin 255 NaN and Inf.
+    Magnitudes m;
+    std::uint64_t nonzero = 0;
+    for (int b = 1; b < 255; ++b) nonzero += hist[b];
+    if (hist[255] > 0) m.max = INFINITY;
+    else
+        for (int b = 254; b >= 1; --b)
+            if (hist[b] > 0) {
+                m.max = std::ldexp(1.0, b - 126);
+                break;
+            }
+    const std::uint64_t allowed = nonzero / 100;  // values allowed above the robust scale
+    std::uint64_t above = 0;
+    for (int b = 254; b >= 1; --b) {
+        if (above + hist[b] > allowed) {
+            m.robust = std::ldexp(1.0, b - 126);
+            break;
+        }
+        above += hist[b];
+    }
+    return m;
+}
+
+/// Planar copy of an interleaved image times inv_scale (a power of two). If
+/// `limit` is finite, pixels whose largest scaled channel exceeds it are
+/// shortened to it, all channels by one factor so the vector keeps its
+/// direction; the arithmetic is in double, so no input can overflow here.
+void to_planar(const Shape& s, const float* in, float* out, double inv_scale = 1.0, double limit = INFINITY) {
+    const bool bounded = std::isfinite(limit);
     for_rows(s.h, [&](int y0, int y1) {
-        for (int y = y0; y < y1; ++y)
+        for (int y = y0; y < y1; ++y) {
+            if (bounded) {
+                const float* row = in + size_t(y) * s.w * s.c;
+                for (int x = 0; x < s.w; ++x) {
+                    double m = 0;
+                    for (int c = 0; c < s.c; ++c) m = std::max(m, std::abs(double(row[size_t(x) * s.c + c]) * inv_scale));
+                    const double f = m > limit ? limit / m * inv_scale : inv_scale;
+                    for (int c = 0; c < s.c; ++c) out[c * s.n + size_t(y) * s.w + x] = float(double(row[size_t(x) * s.c + c]) * f);
+                }
+                continue;
+            }
+            const float k = float(inv_scale);
             for (int c = 0; c < s.c; ++c) {
                 float* o = out + c * s.n + size_t(y) * s.w;
                 const float* i = in + size_t(y) * s.w * s.c + c;
-                for (int x = 0; x < s.w; ++x) o[x] = i[size_t(x) * s.c];
+                if (k == 1.f) for (int x = 0; x < s.w; ++x) o[x] = i[size_t(x) * s.c];
+                else for (int x = 0; x < s.w; ++x) o[x] = i[size_t(x) * s.c] * k;
             }
+        }
     });
 }
 
-void to_interleaved(const Shape& s, const float* in, float* out) {
+/// 1 if v is NaN or Inf (exponent bits all ones), as an integer so that
+/// loops OR-ing it vectorise.
+inline std::uint32_t not_finite(float v) { return (std::bit_cast<std::uint32_t>(v) & 0x7f800000u) == 0x7f800000u; }
+
+/// Interleaved copy of a planar image times `scale` (a power of two; in
+/// double, since the scale itself may lie outside the float range). Returns
+/// whether every value written is finite (tested while writing).
+bool to_interleaved(const Shape& s, const float* in, float* out, double scale = 1.0) {
+    const int blocks = (s.h + kBlockRows - 1) / kBlockRows;
+    std::vector<char> bad(blocks, 0);
     for_rows(s.h, [&](int y0, int y1) {
+        std::uint32_t any = 0;
         for (int y = y0; y < y1; ++y)
             for (int c = 0; c < s.c; ++c) {
                 const float* i = in + c * s.n + size_t(y) * s.w;
                 float* o = out + size_t(y) * s.w * s.c + c;
-                for (int x = 0; x < s.w; ++x) o[size_t(x) * s.c] = i[x];
+                if (scale == 1.0)
+                    for (int x = 0; x < s.w; ++x) o[size_t(x) * s.c] = i[x], any |= not_finite(i[x]);
+                else
+                    for (int x = 0; x < s.w; ++x) {
+                        const float v = float(double(i[x]) * scale);
+                        o[size_t(x) * s.c] = v, any |= not_finite(v);
+                    }
             }
+        bad[y0 / kBlockRows] = any != 0;
     });
+    return std::find(bad.begin(), bad.end(), 1) == bad.end();
+}
+
+/// True if no value of v[0..n) is NaN or Inf. Tests the exponent bits with an
+/// integer OR, which vectorises (an early-exit loop would not).
+bool all_finite(const float* v, size_t n) {
+    const size_t chunk = size_t(1) << 16;
+    const size_t chunks = (n + chunk - 1) / chunk;
+    std::vector<char> bad(chunks, 0);
+    tbb::parallel_for(size_t(0), chunks, [&](size_t k) {
+        std::uint32_t any = 0;
+        for (size_t i = k * chunk; i < std::min(n, (k + 1) * chunk); ++i) any |= not_finite(v[i]);
+        bad[k] = any != 0;
+    });
+    return std::find(bad.begin(), bad.end(), 1) == bad.end();
 }
 
 /// Operator weights, per pixel and shared by the channels: a0w0 = alpha^2 *
@@ -143,18 +263,22 @@ void set_unit_weights(const Shape& s, double alpha, OpWeights& W) {
 struct Workspace {
     Shape s;
     double alpha;
+    double scale;  // the problem's values are `scale` times those of the copies c, gx, gy (and x)
     std::vector<float> c, gx, gy, x, r, z, p, p2, q;
     OpWeights W;
     std::unique_ptr<DctSolver> dct;
     detail::WeightedMultigrid mg;
 
-    explicit Workspace(const PoissonProblem& prob) : s(shape_of(prob)), alpha(prob.alpha) {
+    /// Copies divided by `scale` (a power of two); pixels whose largest
+    /// channel then exceeds `limit` shortened to it (see to_planar).
+    explicit Workspace(const PoissonProblem& prob, double scale = 1.0, double limit = INFINITY)
+        : s(shape_of(prob)), alpha(prob.alpha), scale(scale) {
         const size_t len = s.n * s.c;
         c.resize(len), gx.resize(len), gy.resize(len), x.resize(len);
         r.resize(len), z.resize(len), p.resize(len), p2.resize(len), q.resize(len);
-        to_planar(s, prob.primal.data, c.data());
-        to_planar(s, prob.dx.data, gx.data());
-        to_planar(s, prob.dy.data, gy.data());
+        to_planar(s, prob.primal.data, c.data(), 1.0 / scale, limit);
+        to_planar(s, prob.dx.data, gx.data(), 1.0 / scale, limit);
+        to_planar(s, prob.dy.data, gy.data(), 1.0 / scale, limit);
     }
     DctSolver& dct_solver() {
         if (!dct) dct = std::make_unique<DctSolver>(s.w, s.h);
@@ -282,6 +406,54 @@ Sums update_and_apply(const Shape& s, const OpWeights& W, const float* z, const 
 /// below ~190.
 constexpr float kEpsFloor = 1e-9f;
 
+// The L1 solve works in units of the robust scale (Magnitudes::robust), in
+// which the following bounds keep every IRLS quantity a normal float. Data
+// are at most kDataLimit; an iterate follows data along paths through the
+// image, so a value differs from the colours by at most kDataLimit per pixel
+// of path, below 2^56 for images up to 65536 pixels across, and squared row
+// norms stay below 2^114. eps is at least kEpsMin, so weights
+// eps / (|e| + eps) lie in [2^-96, 1].
+
+/// Largest magnitude (largest channel of a pixel's colour or gradient
+/// vector) the L1 solve sees, in robust-scale units (2^40, about 1e12).
+/// Longer vectors are shortened to it, keeping their direction. For L1 this
+/// leaves the minimiser unchanged as long as the solution's own difference
+/// (or value) in that row stays far below the bound: the energy depends on
+/// such a row only through the direction of its residual, which shortening
+/// does not change, up to a relative 1e-12 for the solution's own
+/// difference. (A pixel with fewer constraints than alpha plus one other
+/// gradient, as in images one pixel wide, may follow an outlier; then the
+/// L1 answer itself is dominated by it.)
+constexpr double kDataLimit = 0x1p40;
+
+/// Smallest eps (robust-scale units): the reference schedule reaches it
+/// only on images brighter than about 2e5.
+constexpr float kEpsMin = 0x1p-40f;
+
+/// Largest row residual (robust-scale units) that the eps floor kEpsFloor
+/// follows. Beyond it a residual is an outlier, whose weight is meant to
+/// vanish (losing it in float sums is harmless, its pull w e ~ eps is
+/// computed separately); following it would raise eps for every row, and
+/// each IRLS step lets an outlier move the image by about eps / 2 (measured:
+/// a gradient of 1e10 on an image of 0.4 left an error of 6.6 that way).
+/// Ordinary inputs (residuals below 1024 times the scale) are unaffected.
+constexpr float kResidualCap = 0x1p10f;
+
+/// The starting point of IRLS ignores how far a gradient row exceeds
+/// kStartRelative times the sum of its two pixels' colours (largest
+/// channel) plus the robust scale. A forward difference of non-negative
+/// radiance is at most the sum of the two radiances; on the reference's
+/// cbox buffers (16 spp) no row exceeds 4 times that sum, so 16 leaves such
+/// noise alone with a margin of 4. The bound matters because IRLS with the
+/// reference's eps schedule (absolute, 0.05 halved 19 times) recovers from a
+/// start displaced by an outlier only when the displacement is modest:
+/// measured on a 16x16 image of 0.4 with one outlier gradient, from the
+/// exact L2 start, an outlier of 500 is removed to 1e-6 but one of 2000
+/// leaves 0.16 and one of 1e4 leaves 2; from a start shortened to this
+/// bound every outlier size is removed to ~1e-7. Only the start uses the
+/// shortened rows; the IRLS steps see the data as given.
+constexpr float kStartRelative = 16.f;
+
 /// One IRLS reweighting fused with the CG residual, in a single pass over
 /// x, c, gx, gy: every residual row r (channels jointly) gets the reference
 /// weight 1 / (|e_r| + eps), here scaled by eps to eps / (|e_r| + eps) in
@@ -373,6 +545,65 @@ Sums reweight_and_residual(Workspace& ws, float eps, OpWeights& W, float& max_no
     return rr;
 }
 
+/// Shortens, in place, the gradient rows (channel vectors of gx and gy)
+/// whose largest channel exceeds kStartRelative (|c_p| + |c_q|) + 1 (|.|:
+/// largest channel; 1 = the robust scale in the workspace's units) to that
+/// bound, if `apply`; returns whether any row exceeds it.
+bool bound_start_gradients(Workspace& ws, bool apply) {
+    const Shape& s = ws.s;
+    const int w = s.w, h = s.h, C = s.c;
+    const int blocks = (h + kBlockRows - 1) / kBlockRows;
+    std::vector<char> found(blocks, 0);
+    // Per image row, in scratch rows: the largest colour channel of this row
+    // and the next, the largest gradient channel, and the bound. Branch-free
+    // loops over contiguous planar rows, so the common case (nothing to
+    // shorten) costs about one vectorised read of c, gx and gy.
+    for_rows(h, [&](int y0, int y1) {
+        thread_local std::vector<float> buf;
+        if (buf.size() < 4 * size_t(w)) buf.resize(4 * size_t(w));
+        float *cn = buf.data(), *cd = cn + w, *gm = cd + w, *bound = gm + w;
+        auto colour = [&](int y, float* out) {
+            std::fill(out, out + w, 0.f);
+            for (int ch = 0; ch < C; ++ch) {
+                const float* c = ws.c.data() + ch * s.n + size_t(y) * w;
+                for (int i = 0; i < w; ++i) out[i] = std::max(out[i], std::abs(c[i]));
+            }
+        };
+        // Largest channel of g's row y over pixels [0, count) against `bound`;
+        // shortens the rows beyond it if `apply`. Returns whether any is.
+        auto check = [&](std::vector<float>& g, int y, int count) {
+            std::fill(gm, gm + count, 0.f);
+            for (int ch = 0; ch < C; ++ch) {
+                const float* gr = g.data() + ch * s.n + size_t(y) * w;
+                for (int i = 0; i < count; ++i) gm[i] = std::max(gm[i], std::abs(gr[i]));
+            }
+            std::uint32_t over = 0;
+            for (int i = 0; i < count; ++i) over |= gm[i] > bound[i];
+            if (over && apply)
+                for (int ch = 0; ch < C; ++ch) {
+                    float* gr = g.data() + ch * s.n + size_t(y) * w;
+                    for (int i = 0; i < count; ++i)
+                        if (gm[i] > bound[i]) gr[i] *= bound[i] / gm[i];
+                }
+            return over != 0;
+        };
+        bool any = false;
+        colour(y0, cn);
+        for (int y = y0; y < y1; ++y) {
+            for (int i = 0; i + 1 < w; ++i) bound[i] = kStartRelative * (cn[i] + cn[i + 1]) + 1.f;
+            any |= check(ws.gx, y, w - 1);
+            if (y + 1 < h) {
+                colour(y + 1, cd);
+                for (int i = 0; i < w; ++i) bound[i] = kStartRelative * (cn[i] + cd[i]) + 1.f;
+                any |= check(ws.gy, y, w);
+                std::swap(cn, cd);
+            }
+        }
+        found[y0 / kBlockRows] = any;
+    });
+    return std::find(found.begin(), found.end(), 1) != found.end();
+}
+
 /// Mean colour and gradient weights (over the rows in use), for the DCT preconditioner.
 void set_weight_means(const Shape& s, OpWeights& W) {
     const Sums sums = sum_rows(s.h, [&](int y0, int y1, Sums& acc) {
@@ -404,6 +635,10 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
     CgReport rep;
     rep.relative_residual = r0 > 0 ? 1.0 : 0.0;
     if (r0 == 0 || opt.max_iterations == 0) return rep;  // already the solution (or nothing to do)
+    if (!std::isfinite(r0)) {  // overflowed residual: no step can be trusted; leave x as it is
+        rep.breakdown = true;
+        return rep;
+    }
 
     if (opt.preconditioner == Preconditioner::multigrid) ws.mg.setup(s.w, s.h, W.a0w0.data(), W.wx.data(), W.wy.data());
     if (opt.preconditioner == Preconditioner::dct) set_weight_means(s, W);
@@ -444,9 +679,22 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
     }
     Sums pq = apply_operator(s, W, dir, q);
 
+    // A channel stops for good once its curvature <p, A p> is not positive
+    // or its step is not finite: in exact arithmetic that happens only when
+    // p = 0 (the channel is solved); in float it means rounding or overflow,
+    // and a step along p would no longer decrease the energy.
+    bool active[4] = {true, true, true, true};
     for (int it = 1; it <= opt.max_iterations; ++it) {
         float step[4] = {0, 0, 0, 0};
-        for (int ch = 0; ch < C; ++ch) step[ch] = pq[ch] > 0 ? float(rz[ch] / pq[ch]) : 0.f;
+        for (int ch = 0; ch < C; ++ch) {
+            const float a = float(rz[ch] / pq[ch]);
+            if (active[ch] && (!(pq[ch] > 0) || !std::isfinite(a))) {
+                active[ch] = false;
+                if (!(pq[ch] == 0 && rz[ch] == 0)) rep.breakdown = true;  // p = 0 with r = 0: merely solved
+            }
+            step[ch] = active[ch] ? a : 0.f;
+        }
+        if (std::none_of(active, active + C, [](bool b) { return b; })) break;
         const bool last = it == opt.max_iterations && !final_residual;  // no further use for r or |r|
         rr = sum_rows(s.h, [&](int y0, int y1, Sums& acc) {
             for (int ch = 0; ch < C; ++ch) {
@@ -465,7 +713,12 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
         });
         rep.iterations = it;
         if (last) break;
-        rep.relative_residual = std::sqrt(total(rr) / r0);
+        const double rel = std::sqrt(total(rr) / r0);
+        if (!std::isfinite(rel)) {  // A p overflowed: r can no longer guide a step
+            rep.breakdown = true;
+            break;
+        }
+        rep.relative_residual = rel;
         if (it == opt.max_iterations || rep.relative_residual <= opt.tolerance) break;
         const float* znew = r;
         Sums rz_new = rr;
@@ -475,7 +728,10 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
             znew = target;
         }
         float beta[4] = {0, 0, 0, 0};
-        for (int ch = 0; ch < C; ++ch) beta[ch] = rz[ch] > 0 ? float(rz_new[ch] / rz[ch]) : 0.f;
+        for (int ch = 0; ch < C; ++ch) {
+            beta[ch] = rz[ch] > 0 ? float(rz_new[ch] / rz[ch]) : 0.f;
+            if (!active[ch] || !std::isfinite(beta[ch])) beta[ch] = 0.f;  // restart along z
+        }
         rz = rz_new;
         float* pnew = other(dir, znew);
         pq = update_and_apply(s, W, znew, dir, beta, pnew, q);
@@ -545,7 +801,27 @@ double energy(const PoissonProblem& prob, const float* xi, int power) {
     return e[0];
 }
 
+/// Division by which the linear solvers (L2, weighted CG) keep every
+/// intermediate sum in float range: 1 unless some value exceeds 2^40.
+double linear_scale(const Magnitudes& m) { return m.max > 0x1p40 ? m.max * 0x1p-40 : 1.0; }
+
+ImageView view_of(const PoissonProblem& p, const float* data) {
+    return ImageView{data, p.primal.width, p.primal.height, p.primal.channels};
+}
+
 }  // namespace
+
+void check_finite_result(const ImageView& image, const std::string& what) {
+    const size_t count = size_t(image.width) * image.height * image.channels;
+    if (all_finite(image.data, count)) return;
+    for (size_t i = 0; i < count; ++i)
+        if (!std::isfinite(image.data[i])) {
+            const size_t px = i / image.channels;
+            throw RuntimeFailure(what + ": the result is not finite (" + std::to_string(image.data[i]) + ") at pixel (" +
+                                 std::to_string(px % image.width) + ", " + std::to_string(px / image.width) +
+                                 ") channel " + std::to_string(i % image.channels));
+        }
+}
 
 void check_problem(const PoissonProblem& p) {
     auto check = [&](const ImageView& v, const char* name) {
@@ -598,29 +874,45 @@ void poisson_l2(const PoissonProblem& prob, float* out) {
     // tenth of the solve.
     thread_local std::unique_ptr<DctSolver> dct;
     if (!dct || dct->width() != s.w || dct->height() != s.h) dct = std::make_unique<DctSolver>(s.w, s.h);
-    dct->solve(out, out, C, prob.alpha * prob.alpha, 1.0, /*interleaved=*/true);
+    bool finite = false;
+    dct->solve(out, out, C, prob.alpha * prob.alpha, 1.0, /*interleaved=*/true, &finite);
+    // Overflow anywhere (right-hand side, FFT sums) turns the whole result
+    // non-finite, so checking the output (done while the solver writes it)
+    // detects it; only then is the scan of the input and the scaled solve
+    // paid for.
+    if (finite) return;
+    const Magnitudes m = magnitudes(prob);
+    const double scale = linear_scale(m);
+    if (std::isfinite(m.max) && scale > 1.0) {
+        Workspace ws(prob, scale);
+        solve_l2_into(ws);
+        to_interleaved(s, ws.x.data(), out, scale);  // Inf here: the solution itself exceeds the float range
+    }
+    check_finite_result(view_of(prob, out), "poisson-l2");
 }
 
 CgReport poisson_weighted(const PoissonProblem& prob, const RowWeights* weights, const CgOptions& options, float* x) {
     check_problem(prob);
     if (options.max_iterations < 0) throw ParameterError("poisson_weighted: max_iterations must be >= 0");
     if (!(options.tolerance >= 0)) throw ParameterError("poisson_weighted: tolerance must be >= 0");
-    Workspace ws(prob);
+    Workspace ws(prob, linear_scale(magnitudes(prob)));
     if (weights) set_row_weights(ws.s, *weights, prob.alpha, ws.W);
     else set_unit_weights(ws.s, prob.alpha, ws.W);
-    to_planar(ws.s, x, ws.x.data());
+    to_planar(ws.s, x, ws.x.data(), 1.0 / ws.scale);
     const CgReport rep = run_cg(ws, ws.W, options);
-    to_interleaved(ws.s, ws.x.data(), x);
+    if (!to_interleaved(ws.s, ws.x.data(), x, ws.scale)) check_finite_result(view_of(prob, x), "poisson_weighted");
     return rep;
 }
 
 RowWeights irls_weights(const PoissonProblem& prob, const float* x, double eps) {
     check_problem(prob);
     if (!(eps > 0)) throw ParameterError("irls_weights: eps must be > 0");
-    Workspace ws(prob);
-    to_planar(ws.s, x, ws.x.data());
+    // The same units as poisson_l1 (weights are invariant under the common scaling of e and eps).
+    const Magnitudes m = magnitudes(prob);
+    Workspace ws(prob, m.robust, m.max > kDataLimit * m.robust ? kDataLimit : INFINITY);
+    to_planar(ws.s, x, ws.x.data(), 1.0 / ws.scale, kDataLimit);
     float max_norm = 0;
-    reweight_and_residual(ws, float(eps), ws.W, max_norm);
+    reweight_and_residual(ws, std::max(float(eps / ws.scale), FLT_MIN), ws.W, max_norm);
     // Normalise to mean 1 over the rows in use, as the reference does.
     const Shape& s = ws.s;
     const double rows = double(s.n) + double(s.w - 1) * s.h + double(s.h - 1) * s.w;
@@ -645,12 +937,22 @@ L1Report poisson_l1(const PoissonProblem& prob, const L1Options& opt, float* out
     if (!(opt.tolerance >= 0)) throw ParameterError("poisson-l1: tolerance must be >= 0");
     if (!(opt.eps_initial > 0) || !(opt.eps_factor > 0) || opt.eps_factor > 1)
         throw ParameterError("poisson-l1: need eps_initial > 0 and 0 < eps_factor <= 1");
-    Workspace ws(prob);
+    // In units of the robust scale (see kDataLimit); eps scales with the data.
+    const Magnitudes m = magnitudes(prob);
+    Workspace ws(prob, m.robust, m.max > kDataLimit * m.robust ? kDataLimit : INFINITY);
     L1Report rep;
     CgOptions cg;
     cg.max_iterations = opt.cg_iterations;
     cg.tolerance = opt.tolerance;
     cg.preconditioner = opt.preconditioner;
+    // The start sees outlier gradients shortened (kStartRelative); ordinary
+    // inputs have none, and then nothing is copied.
+    std::vector<float> full_gx, full_gy;
+    const bool bounded = bound_start_gradients(ws, false);
+    if (bounded) {
+        full_gx = ws.gx, full_gy = ws.gy;
+        bound_start_gradients(ws, true);
+    }
     if (opt.exact_l2_start) {
         solve_l2_into(ws);
     } else {
@@ -659,16 +961,22 @@ L1Report poisson_l1(const PoissonProblem& prob, const L1Options& opt, float* out
         set_unit_weights(ws.s, prob.alpha, ws.W);
         rep.cg_iterations += run_cg(ws, ws.W, cg).iterations;
     }
+    if (bounded) ws.gx.swap(full_gx), ws.gy.swap(full_gy);
     rep.irls_iterations = 1;
     double eps = opt.eps_initial;
     float max_norm = 0;  // largest row residual of the previous iterate (for the eps floor)
     for (int k = 1; k < opt.iterations; ++k, eps *= opt.eps_factor) {
-        const float e = std::max(float(eps), kEpsFloor * max_norm);
-        const Sums rr = reweight_and_residual(ws, e, ws.W, max_norm);
+        const float e = std::max({float(eps / ws.scale), kEpsFloor * std::min(max_norm, kResidualCap), kEpsMin});
+        float norm = 0;
+        const Sums rr = reweight_and_residual(ws, e, ws.W, norm);
+        // Cannot happen within the bounds above; if it did, the weights of
+        // this step would be NaN, so the last finite iterate is kept.
+        if (!std::isfinite(norm) || !std::isfinite(total(rr))) break;
+        max_norm = norm;
         rep.cg_iterations += run_cg(ws, ws.W, cg, &rr, false).iterations;
         rep.irls_iterations = k + 1;
     }
-    to_interleaved(ws.s, ws.x.data(), out);
+    if (!to_interleaved(ws.s, ws.x.data(), out, ws.scale)) check_finite_result(view_of(prob, out), "poisson-l1");
     rep.energy = poisson_energy_l1(prob, out);
     return rep;
 }

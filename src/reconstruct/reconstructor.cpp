@@ -13,6 +13,7 @@
 #include <filesystem>
 
 #include "gdr/io/exr.h"
+#include "gdr/reconstruct/poisson.h"
 
 namespace gdr {
 namespace {
@@ -69,13 +70,27 @@ Image Reconstructor::reconstruct(const GradientBuffers& in) const {
     if (!out.same_shape(*in.primal))
         throw RuntimeFailure("reconstructor returned a " + shape_text(out) + " image for " + shape_text(*in.primal) +
                              " input");
+    // The one check every method passes through: a NaN or Inf from any
+    // solver (or from adding `direct`) must never reach an image file. With
+    // `direct`, it is tested in the same pass as the sum.
+    const ImageView result{out.data(), out.width(), out.height(), out.channels()};
     if (in.direct) {
         const float* d = in.direct->data();
         float* o = out.data();
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, out.values().size(), 1 << 16),
-                          [&](const tbb::blocked_range<size_t>& r) {
-                              for (size_t i = r.begin(); i < r.end(); ++i) o[i] += d[i];
-                          });
+        const bool bad = tbb::parallel_reduce(
+            tbb::blocked_range<size_t>(0, out.values().size(), 1 << 16), false,
+            [&](const tbb::blocked_range<size_t>& r, bool found) {
+                std::uint32_t any = 0;
+                for (size_t i = r.begin(); i < r.end(); ++i) {
+                    o[i] += d[i];
+                    any |= (std::bit_cast<std::uint32_t>(o[i]) & 0x7f800000u) == 0x7f800000u;
+                }
+                return found || any != 0;
+            },
+            [](bool a, bool b) { return a || b; });
+        if (bad) check_finite_result(result, "reconstruction");
+    } else {
+        check_finite_result(result, "reconstruction");
     }
     return out;
 }

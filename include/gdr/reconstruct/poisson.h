@@ -26,9 +26,24 @@
 // with the DCT preconditioner (more than the budget) and 0.19% with multigrid,
 // whose iterations are also cheaper. The DCT preconditioner stays available
 // (Preconditioner::dct) and is exact for unit weights.
+//
+// Outliers and float range. The L1 reconstruction of Lehtinen et al.,
+// "Gradient-Domain Metropolis Light Transport" (2013), and Kettunen et al.,
+// "Gradient-Domain Path Tracing" (2015), solved by IRLS: a residual row e
+// gets weight 1 / (|e| + eps), so its pull |e| / (|e| + eps) on the solution
+// stays below 1 however large e is, and the L1 minimiser ignores a single
+// huge gradient. Two things undo that in
+// practice, and are handled here: a starting point displaced by the outlier
+// (the exact L2 solution follows it), from which 20 IRLS steps do not come
+// back, so the start shortens gradients far beyond their pixels' colours;
+// and float overflow (a gradient of 1e30 squared), so the L1 solve works in
+// units of a robust scale of the data and bounds what it sees (see
+// poisson_l1). No solver returns NaN or Inf: each checks its result and
+// throws RuntimeFailure naming the pixel instead.
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace gdr {
@@ -55,6 +70,12 @@ struct PoissonProblem {
 /// checked by the Reconstructor front end, which names layer and pixel.)
 void check_problem(const PoissonProblem& problem);
 
+/// Throws RuntimeFailure, message starting with `what`, naming the first
+/// pixel (x, y) and channel of `image` (any values, e.g. radiance) that holds
+/// NaN or Inf; returns if all values are finite. Every solver below and
+/// Reconstructor::reconstruct() end with it.
+void check_finite_result(const ImageView& image, const std::string& what);
+
 /// Exact solver of (a I + b L) x = rhs per channel, L = Dx^T Dx + Dy^T Dy with
 /// the dropped border rows, through a 2-D DCT-II built on real FFTs.
 /// FFTW plans are cached per image size for the life of the process (created
@@ -73,7 +94,10 @@ public:
     /// width * height) or, if `interleaved`, with channels interleaved per
     /// pixel like Image. a > 0, b >= 0; rhs and x may alias. If a == 0 the
     /// constant component is left out (the minimum-norm Poisson solution).
-    void solve(const float* rhs, float* x, int channels, double a, double b, bool interleaved = false);
+    /// If `all_finite` is given it receives whether every value of x is
+    /// finite (tested while x is written, so without another pass).
+    void solve(const float* rhs, float* x, int channels, double a, double b, bool interleaved = false,
+               bool* all_finite = nullptr);
 
     int width() const;   ///< Columns this solver was made for.
     int height() const;  ///< Rows this solver was made for.
@@ -98,6 +122,9 @@ struct RowWeights {
 /// solved in place. Keeps the DctSolver of the last image size it solved
 /// (scratch of about 2 floats per value) per calling thread, so that a
 /// renderer reconstructing frame after frame does not pay for fresh memory.
+/// If that overflows (inputs near the float range), it is solved again on a
+/// copy scaled by a power of two; throws RuntimeFailure naming the pixel if
+/// the solution itself is beyond the float range (`out` then unspecified).
 void poisson_l2(const PoissonProblem& problem, float* out);
 
 /// Preconditioner of a CG solve.
@@ -119,7 +146,11 @@ struct CgOptions {
 /// What a CG solve did.
 struct CgReport {
     int iterations = 0;                ///< CG iterations taken.
-    double relative_residual = 0.0;    ///< ||r|| / ||r0|| at exit (recursively updated residual).
+    double relative_residual = 0.0;    ///< ||r|| / ||r0|| at exit (recursively updated residual; last finite value).
+    /// True if CG stopped because a curvature <p, A p> was not positive or a
+    /// step, residual or curvature overflowed (e.g. weights near the float
+    /// range); x then holds the last iterate, not a solution.
+    bool breakdown = false;
 };
 
 /// Minimises the weighted L2 energy sum w_r |row residual r|^2 by (P)CG on
@@ -127,13 +158,17 @@ struct CgReport {
 /// shape as the inputs). `weights` == nullptr means all ones. Each channel
 /// runs its own CG scalars, as in the reference. With max_iterations = 50,
 /// Preconditioner::none and x = primal this is the reference's "L2D" preset.
+/// A channel whose curvature <p, A p> is not positive or whose step is not
+/// finite stops there (CgReport::breakdown); throws RuntimeFailure naming the
+/// pixel if x ends non-finite.
 CgReport poisson_weighted(const PoissonProblem& problem, const RowWeights* weights, const CgOptions& options,
                           float* x);
 
 /// The reference's IRLS reweighting at iterate x: every residual row r (the
 /// channel vector of alpha (x - c), Dx x - gx or Dy x - gy) gets weight
 /// 1 / (||e_r|| + eps), then all weights are scaled to mean 1 over the rows
-/// in use. eps in radiance units.
+/// in use. eps in radiance units. Computed in the same scaled units as
+/// poisson_l1, so huge residuals get tiny weights rather than NaN.
 RowWeights irls_weights(const PoissonProblem& problem, const float* x, double eps);
 
 /// Settings of the L1 (IRLS) solve. The defaults keep the reference's
@@ -176,7 +211,16 @@ struct L1Report {
 /// weights are the reference's 1 / (|e_r| + eps) up to a common factor, which
 /// does not change the solution; eps is never taken below 1e-9 times the
 /// largest row residual of the previous iterate, where float arithmetic would
-/// lose the small weights (the default schedule stays well above).
+/// lose the small weights (the default schedule stays well above), counting
+/// residuals beyond 1024 times the robust scale below as that much (they are
+/// outliers, whose weight is meant to vanish).
+/// Robustness (see the file comment): the solve runs on the data divided by
+/// a power of two near their 99th percentile magnitude (exact, so ordinary
+/// results are unchanged), with pixel vectors beyond 2^40 of that scale
+/// shortened to it and eps not below 2^-40 of it; the starting point (either
+/// kind) uses gradient rows shortened to 16 times the sum of their two
+/// pixels' colours plus that scale. Throws RuntimeFailure naming the pixel if
+/// the result is not finite.
 L1Report poisson_l1(const PoissonProblem& problem, const L1Options& options, float* out);
 
 /// The L1 energy of x (radiance): sum over rows of the Euclidean norm of the

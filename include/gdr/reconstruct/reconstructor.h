@@ -44,14 +44,16 @@ struct GradientFrame {
 /// any of them holds NaN or Inf.
 void check_gradient_buffers(const GradientBuffers& in);
 
-/// A reconstruction method. reconstruct() checks the input and adds `direct`
-/// around the method's own solve(), so no method can forget either.
+/// A reconstruction method. reconstruct() checks the input, adds `direct` and
+/// checks the output around the method's own solve(), so no method can
+/// forget any of them.
 class Reconstructor {
 public:
     virtual ~Reconstructor() = default;
 
     /// The final image (same shape as the inputs, radiance): check_gradient_buffers,
-    /// then solve(), then + direct if present.
+    /// then solve(), then + direct if present; throws RuntimeFailure naming the
+    /// pixel (x, y) and channel if a value of the result is NaN or Inf.
     Image reconstruct(const GradientBuffers& in) const;
 
     /// The method's parameters as "key=value" lines (for file headers).
@@ -59,7 +61,7 @@ public:
 
 protected:
     /// Reconstructs from checked, finite, equally shaped primal / dx / dy;
-    /// must not add `direct` (the caller does).
+    /// must not add `direct` nor check the result (the caller does both).
     virtual Image solve(const GradientBuffers& in) const = 0;
 };
 
