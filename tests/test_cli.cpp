@@ -14,6 +14,7 @@
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
+#include "cli_test_util.h"
 
 using namespace gdr;
 using Catch::Matchers::Contains;
@@ -23,31 +24,14 @@ namespace {
 
 const std::string kScenes = GDR_SOURCE_DIR "/tests/scenes/";
 
-// A fresh directory for this process's outputs, removed when the process ends.
-struct OutDir {
-    fs::path path = fs::temp_directory_path() / ("gdr-test-cli-" + std::to_string(getpid()));
-    OutDir() { fs::create_directories(path); }
-    ~OutDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-};
 const fs::path& out_dir() {
-    static const OutDir dir;
+    static const test::OutDir dir("cli");
     return dir.path;
 }
 
 std::string out(const std::string& name) { return (out_dir() / name).string(); }
 
-// The message of the gdr::Error that cli::run throws for `args` ("" if none).
-std::string error_of(const std::vector<std::string>& args) {
-    try {
-        cli::run(args);
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
+using test::error_of;
 
 }  // namespace
 

@@ -17,6 +17,7 @@
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
+#include "cli_test_util.h"
 
 using namespace gdr;
 using Catch::Matchers::Contains;
@@ -27,52 +28,13 @@ namespace {
 const std::string kScenes = GDR_SOURCE_DIR "/tests/scenes/";
 const std::string kSmall = kScenes + "cornell-small.json";
 
-// A fresh directory for this process's outputs, removed when the process ends.
-struct OutDir {
-    fs::path path = fs::temp_directory_path() / ("gdr-test-safety-" + std::to_string(getpid()));
-    OutDir() { fs::create_directories(path); }
-    ~OutDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-};
-const fs::path& out_dir() {
-    static const OutDir dir;
-    return dir.path;
+std::string out(const std::string& name) {
+    static const test::OutDir dir("safety");
+    return dir(name);
 }
-std::string out(const std::string& name) { return (out_dir() / name).string(); }
-
-std::string error_of(const std::vector<std::string>& args) {
-    try {
-        cli::run(args);
-    } catch (const Error& e) {
-        return e.what();
-    }
-    return "";
-}
-
-std::string bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    return {std::istreambuf_iterator<char>(in), {}};
-}
-
-// What `fn` printed on stdout.
-template <typename Fn>
-std::string stdout_of(Fn&& fn) {
-    std::fflush(stdout);
-    char name[] = "/tmp/gdr-stdout-XXXXXX";
-    const int fd = mkstemp(name);
-    const int saved = dup(STDOUT_FILENO);
-    dup2(fd, STDOUT_FILENO);
-    fn();
-    std::fflush(stdout);
-    dup2(saved, STDOUT_FILENO);
-    close(saved);
-    close(fd);
-    const std::string text = bytes(name);
-    std::remove(name);
-    return text;
-}
+using test::error_of;
+using test::stdout_of;
+std::string bytes(const std::string& path) { return test::file_bytes(path); }
 
 // A copy of the small Cornell box scene (its OBJ and MTL too) in `dir`, so that a test may change it.
 std::string copy_small_scene(const std::string& dir) {

@@ -14,6 +14,7 @@
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
+#include "cli_test_util.h"
 
 using namespace gdr;
 using Catch::Matchers::Contains;
@@ -21,51 +22,20 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A fresh directory for this process's files, removed when the process ends.
-struct OutDir {
-    fs::path path = fs::temp_directory_path() / ("gdr-test-compare-" + std::to_string(getpid()));
-    OutDir() { fs::create_directories(path); }
-    ~OutDir() {
-        std::error_code ec;
-        fs::remove_all(path, ec);
-    }
-};
 std::string out(const std::string& name) {
-    static const OutDir dir;
-    return (dir.path / name).string();
+    static const test::OutDir dir("compare");
+    return dir(name);
 }
 
-// What cli::run(args) prints to stdout; `rc` gets its return value. Errors
-// propagate after stdout is restored.
+// What cli::run(args) prints to stdout; `rc` gets its return value.
 std::string stdout_of(const std::vector<std::string>& args, int* rc = nullptr) {
-    std::fflush(stdout);
-    FILE* tmp = std::tmpfile();
-    REQUIRE(tmp);
-    const int saved = dup(fileno(stdout));
-    dup2(fileno(tmp), fileno(stdout));
-    const auto restore = [&] {
-        std::fflush(stdout);
-        dup2(saved, fileno(stdout));
-        close(saved);
-    };
     int r = 0;
-    try {
-        r = cli::run(args);
-    } catch (...) {
-        restore();
-        std::fclose(tmp);
-        throw;
-    }
-    restore();
-    std::string text;
-    std::rewind(tmp);
-    for (int c; (c = std::fgetc(tmp)) != EOF;) text += char(c);
-    std::fclose(tmp);
+    const std::string text = test::stdout_of([&] { r = cli::run(args); });
     if (rc) *rc = r;
     return text;
 }
 
-// The message of the gdr::Error that cli::run throws for `args` ("" if none).
+// The message of the gdr::Error that compare throws, its report silenced ("" if none).
 std::string error_of(const std::vector<std::string>& args) {
     try {
         stdout_of(args);
