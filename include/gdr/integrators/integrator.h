@@ -31,10 +31,11 @@ struct RenderSettings {
     /// abandoned where it can be undone, and if no pass has finished,
     /// render() throws Interrupted.
     const std::atomic<bool>* abort = nullptr;
-    /// Longest time (s) a cancel waits for the pass under way. Passes are sized
-    /// to half of it; a pass predicted to take longer (one sample per pixel of
-    /// a large image) is abandoned and undone instead, from a copy of the sums
-    /// taken only for such passes. Does not change the image.
+    /// About how long (s) a cancel waits for the pass under way: passes are
+    /// sized to it, and a pass predicted to take over 1.5 times as long (one
+    /// sample per pixel of a large image) is abandoned and undone instead,
+    /// from a copy of the sums taken only for such passes. Does not change
+    /// the image.
     double stop_latency = 1.0;
 };
 
