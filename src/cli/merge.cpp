@@ -19,15 +19,7 @@ namespace {
 
 // The integrator that made a render, rebuilt from its stored name and parameters.
 std::unique_ptr<Integrator> integrator_of(const StoredRender& p) {
-    const auto& m = p.fb.metadata();
-    Params params(p.file + " (integrator_params)");
-    std::string lines = m.at("integrator_params");
-    for (size_t at = 0; at < lines.size();) {
-        const size_t end = std::min(lines.find('\n', at), lines.size());
-        if (end > at) params.set_from_text(lines.substr(at, end - at));
-        at = end + 1;
-    }
-    return integrator_registry().create(m.at("integrator"), params);
+    return integrator_registry().create(p.fb.metadata().at("integrator"), stored_params(p));
 }
 
 }  // namespace

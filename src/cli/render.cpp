@@ -113,19 +113,6 @@ std::pair<int, int> parse_resolution(const std::string& v) {
             int(ArgReader::parse_int("--resolution", v.substr(x + 1), 1, kMaxResolution))};
 }
 
-// The integrator parameters stored in a render's header, as Params that
-// --set may then override.
-Params stored_params(const StoredRender& r) {
-    Params p(r.file + " (integrator_params)");
-    const std::string& lines = r.fb.metadata().at("integrator_params");
-    for (size_t at = 0; at < lines.size();) {
-        const size_t end = std::min(lines.find('\n', at), lines.size());
-        if (end > at) p.set_from_text(lines.substr(at, end - at));
-        at = end + 1;
-    }
-    return p;
-}
-
 }  // namespace
 
 int render(const std::vector<std::string>& args) {

@@ -195,6 +195,12 @@ StoredRender read_stored_render(const std::string& file) {
     return r;
 }
 
+Params stored_params(const StoredRender& r) {
+    Params p(r.file + " (integrator_params)");
+    for (const auto& [k, v] : parameter_map(r.fb.metadata().at("integrator_params"))) p.set_from_text(k + "=" + v);
+    return p;
+}
+
 RenderIdentity identity_of(const StoredRender& r) {
     const auto& m = r.fb.metadata();
     RenderIdentity id;
@@ -318,14 +324,12 @@ std::string rescue_path() {
 
 void check_finite(const FrameBuffer& fb, const std::string& file) {
     for (const auto& name : fb.names()) {
-        const Image& img = fb.get(name);
-        for (int y = 0; y < img.height(); ++y)
-            for (int x = 0; x < img.width(); ++x)
-                for (int c = 0; c < img.channels(); ++c)
-                    if (!std::isfinite(img.at(x, y, c)))
-                        throw RuntimeFailure(fmt::format("{}: layer '{}' holds {} at pixel ({}, {}), channel {}; no "
-                                                         "image is written with a NaN or Inf",
-                                                         file, name, img.at(x, y, c), x, y, c));
+        try {
+            require_finite(fb.get(name), file + ": layer '" + name + "'");
+        } catch (const InputError& e) {
+            // Not bad input: a layer computed here, which no image may keep.
+            throw RuntimeFailure(std::string(e.what()) + "; no image is written with a NaN or Inf");
+        }
     }
 }
 

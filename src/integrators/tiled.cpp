@@ -221,10 +221,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     std::unique_ptr<HugeDoubles> backup_sum, backup_sum2;
     std::vector<uint8_t> tile_done(tiles.size());
     // Runs samples [first, first + count) of every pixel. With `abandonable`,
-    // a tile not yet started when `stop_now()` holds is skipped, and the pass
-    // is then undone (from the backup, when it is not the first): returns
-    // false in that case.
-    auto run_pass = [&](long long first, long long count, bool abandonable, const auto& stop_now) {
+    // a tile not yet started once a cancel or abort is seen is skipped, and
+    // the pass is then undone (from the backup, when it is not the first):
+    // returns false in that case.
+    auto run_pass = [&](long long first, long long count, bool abandonable) {
         std::atomic<bool> skipped{false};
         std::fill(tile_done.begin(), tile_done.end(), uint8_t(0));
         const bool keep = abandonable && !first_pass;
@@ -237,7 +237,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         arena.execute([&] {
             tbb::parallel_for(size_t(0), tiles.size(), [&](size_t ti) {
                 const Tile& t = tiles[ti];
-                if (abandonable && (skipped.load(std::memory_order_relaxed) || stop_now())) {
+                if (abandonable && (skipped.load(std::memory_order_relaxed) || cancelled() || aborted())) {
                     skipped = true;
                     return;
                 }
@@ -370,10 +370,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // needs a sample in every pixel, so render() then throws Interrupted.
     const auto pass = [&](long long first, long long n) {
         const auto t = seconds();
-        bool ok;
-        if (first_pass) ok = run_pass(first, n, true, [&] { return cancelled() || aborted(); });
-        else if (long_pass(n) && ensure_backup()) ok = run_pass(first, n, true, [&] { return cancelled() || aborted(); });
-        else ok = run_pass(first, n, false, aborted);
+        const bool ok = run_pass(first, n, first_pass || (long_pass(n) && ensure_backup()));
         if (ok) seconds_per_spp = (seconds() - t) / double(n);
         return ok;
     };

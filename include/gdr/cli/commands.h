@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "gdr/core/image.h"
+#include "gdr/core/params.h"
 
 namespace gdr::cli {
 
@@ -75,6 +76,10 @@ void check_render_settings(const FrameBuffer& fb, const std::string& file);
 /// the pixel, for a damaged "spp" layer) if an entry every render has is
 /// missing, malformed or inconsistent.
 StoredRender read_stored_render(const std::string& file);
+
+/// The integrator parameters stored in a render's header ("integrator_params"),
+/// as Params that --set may override and the integrator registry takes.
+Params stored_params(const StoredRender& r);
 
 /// What must agree between two renders for their samples to be pooled.
 struct RenderIdentity {
