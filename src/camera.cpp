@@ -40,4 +40,18 @@ bool Camera::project(const Vec3& p, Vec2& film) const {
     return true;
 }
 
+float Camera::importance(const Vec3& w, Vec2& film) const {
+    const float c = glm::dot(w, forward_);
+    if (!(c > 0.f) || !project(desc_.position + w, film)) return 0.f;
+    if (!(film.x >= 0.f && film.x < float(desc_.width) && film.y >= 0.f && film.y < float(desc_.height))) return 0.f;
+    const float c2 = c * c;
+    return 1.f / (film_area_at_unit_distance() * c2 * c2);
+}
+
+float Camera::direction_pdf(const Vec3& w) const {
+    Vec2 film;
+    const float we = importance(w, film);
+    return we * glm::dot(w, forward_);
+}
+
 }  // namespace gdr

@@ -468,7 +468,7 @@ void Scene::visible8(const VisibilityBatch& q, bool out[8]) const {
     }
 }
 
-LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
+LightSample Scene::sample_emitter_point(float u_sel, const Vec2& u) const {
     LightSample ls;
     if (buckets_.empty()) return ls;
     // One number picks the bucket and, by its fraction, emitter or alias.
@@ -481,7 +481,13 @@ LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) con
     ls.n = e.n;
     ls.prim = e.prim;
     ls.pdf_a = light_pdf_by_material_[e.material];
-    ls.radiance = glm::dot(ls.n, ref - ls.p) > 0.f ? materials_[e.material].emission : Color(0.f);
+    ls.radiance = materials_[e.material].emission;
+    return ls;
+}
+
+LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
+    LightSample ls = sample_emitter_point(u_sel, u);
+    if (!(glm::dot(ls.n, ref - ls.p) > 0.f)) ls.radiance = Color(0.f);
     return ls;
 }
 

@@ -49,6 +49,7 @@ struct HugeDoubles {
 
 struct TiledIntegrator::Buffers {
     std::unique_ptr<HugeDoubles> sum, sum2;
+    std::unique_ptr<HugeDoubles> splat_sum, splat_sum2;  // per pixel and splat layer, 3 channels
     // A kept buffer is reused if it holds at least n doubles and not more
     // than four times that (a small render does not pin a big render's memory).
     static HugeDoubles& fit(std::unique_ptr<HugeDoubles>& b, size_t n) {
@@ -91,8 +92,11 @@ size_t TiledIntegrator::release_buffers() {
     size_t bytes = 0;
     if (buffers_->sum) bytes += buffers_->sum->bytes;
     if (buffers_->sum2) bytes += buffers_->sum2->bytes;
+    if (buffers_->splat_sum) bytes += buffers_->splat_sum->bytes + buffers_->splat_sum2->bytes;
     buffers_->sum.reset();
     buffers_->sum2.reset();
+    buffers_->splat_sum.reset();
+    buffers_->splat_sum2.reset();
     return bytes;
 }
 
@@ -171,11 +175,15 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // first pass: a serial memset of a large image would cost as much as a
     // few samples per pixel, and first touch on the worker places the pages.
     const size_t npix = size_t(W) * H;
+    const int splat_layers = std::max(0, this->splat_layers());
+    const bool splatting = splat_layers > 0;
+    const size_t splat_values = npix * size_t(splat_layers) * 3;
     // Accumulators plus the float layers finalize() writes (about one per
     // accumulated channel): refused up front when they exceed the machine's
     // memory, where the kernel would otherwise grant them and kill the
     // process part-way through the render.
-    const double need = double(npix) * (double(stride + var_stride) * sizeof(double) + double(stride) * sizeof(float));
+    const double need = double(npix) * (double(stride + var_stride) * sizeof(double) + double(stride) * sizeof(float)) +
+                        double(splat_values) * (2 * sizeof(double) + sizeof(float));
     const double have = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     const auto too_big = [&] {
         return RuntimeFailure(fmt::format("a {}x{} render with this integrator needs about {:.1f} GB of memory, "
@@ -188,6 +196,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     try {
         sum_p = &Buffers::fit(buffers_->sum, npix * stride);
         sum2_p = &Buffers::fit(buffers_->sum2, npix * var_stride);
+        if (splatting) {
+            Buffers::fit(buffers_->splat_sum, splat_values);
+            Buffers::fit(buffers_->splat_sum2, splat_values);
+        }
     } catch (const std::bad_alloc&) {
         throw too_big();
     }
@@ -220,6 +232,16 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // sums, so that every pixel keeps the same number of samples.
     std::unique_ptr<HugeDoubles> backup_sum, backup_sum2;
     std::vector<uint8_t> tile_done(tiles.size());
+    // Each tile's splats of the pass under way, added to the splat sums in
+    // tile order once the pass is whole (an abandoned pass drops them).
+    std::vector<SplatList> tile_splats(splatting ? tiles.size() : 0);
+    for (SplatList& l : tile_splats) l.width_ = W, l.height_ = H;
+    double* splat_sum = splatting ? buffers_->splat_sum->data : nullptr;
+    double* splat_sum2 = splatting ? buffers_->splat_sum2->data : nullptr;
+    if (splatting)
+        arena.execute([&] {
+            tbb::parallel_for(size_t(0), splat_values, size_t(1) << 16, [&](size_t i) { splat_sum[i] = splat_sum2[i] = 0.0; });
+        });
     // Runs samples [first, first + count) of every pixel. With `abandonable`,
     // a tile not yet started once a cancel or abort is seen is skipped, and
     // the pass is then undone (from the backup, when it is not the first):
@@ -255,6 +277,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 if (size_t(stride) * batch > 64) v_heap.resize(size_t(stride) * batch), vp = v_heap.data();
                 SampleJob jobs[kMaxBatch];
                 int n = 0;
+                SplatList* splats = splatting ? &tile_splats[ti] : nullptr;
+                if (splats) splats->splats_.clear();
                 uint64_t local_rays = 0, local_nan = 0;
                 // Adds one sample's values `a` to pixel (x, y)'s sums, or
                 // drops and reports it if any value is not finite.
@@ -297,7 +321,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         for (long long i = first; i < first + count; ++i) {
-                            if (batch == 1) {
+                            if (batch == 1 && !splatting) {
                                 // One at a time: no job queue between the sample and its sums.
                                 std::fill(vp, vp + stride, 0.f);
                                 Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
@@ -307,6 +331,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                             }
                             jobs[n].x = x, jobs[n].y = y;
                             jobs[n].sampler = Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
+                            jobs[n].splats = splats;
                             if (++n == batch) flush();
                         }
                     }
@@ -326,6 +351,24 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         });
         if (!skipped) {
             first_pass = false;
+            // Serial, in tile order: a pixel's splat sums then add the same
+            // values in the same order whatever the threads did.
+            uint64_t bad = 0;
+            for (size_t ti = 0; ti < tile_splats.size(); ++ti)
+                for (const SplatList::Splat& sp : tile_splats[ti].splats_) {
+                    if (!(std::isfinite(sp.v[0]) && std::isfinite(sp.v[1]) && std::isfinite(sp.v[2]))) {
+                        ++bad;
+                        if (stats.nonfinite_pixels.size() < 8)
+                            stats.nonfinite_pixels.emplace_back(int(sp.pixel % uint32_t(W)), int(sp.pixel / uint32_t(W)));
+                        continue;
+                    }
+                    const size_t at = (size_t(sp.pixel) * splat_layers + sp.layer) * 3;
+                    for (int c = 0; c < 3; ++c) {
+                        splat_sum[at + c] += sp.v[c];
+                        splat_sum2[at + c] += double(sp.v[c]) * double(sp.v[c]);
+                    }
+                }
+            nonfinite += bad;
             return true;
         }
         for (size_t ti = 0; ti < tiles.size(); ++ti) {
@@ -408,6 +451,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     acc.sum_ = sum.data, acc.sum2_ = sum2.data;
     acc.stride_ = stride, acc.var_stride_ = var_stride;
     acc.offset_ = offset, acc.var_offset_ = var_offset;
+    acc.splat_sum_ = splat_sum, acc.splat_sum2_ = splat_sum2, acc.splat_layers_ = splat_layers;
     out = FrameBuffer(W, H);
     arena.execute([&] { finalize(acc, out); });
     out.add("spp", 1);

@@ -2,14 +2,9 @@
 #pragma once
 
 #include "gdr/core/math.h"
+#include "gdr/path/mis.h"
 
 namespace gdr {
-
-/// Power heuristic (beta = 2) weight of strategy a against b; pdfs in one measure.
-inline float power_heuristic(float pdf_a, float pdf_b) {
-    const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-    return a > 0.f ? a / (a + b) : 0.f;
-}
 
 /// Solid-angle density from an area density at a point seen at distance
 /// `dist` under |cos| `cos_at_point` (1/sr from 1/m^2).

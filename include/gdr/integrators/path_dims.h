@@ -25,4 +25,18 @@ inline constexpr uint32_t kClassify = 7;     ///< 1 number: probabilistic vertex
 /// First dimension of the block of the vertex at path depth `depth` (1 = first hit).
 constexpr uint32_t vertex(int depth) { return kFirstVertex + uint32_t(depth - 1) * kPerVertex; }
 
+// A light subpath (bidirectional methods) draws from its own range, far
+// above any camera path's blocks, with the same per-vertex layout after an
+// origin block: the camera subpath of a sample keeps the numbers a path
+// tracer's path would use, and the two subpaths are independent.
+inline constexpr uint32_t kLightSubpath = 1u << 30;  ///< Start of the light subpath's range.
+inline constexpr uint32_t kEmitPoint = 0;    ///< 2 numbers: point on the emitter (origin block).
+inline constexpr uint32_t kEmitSelect = 2;   ///< 1 number: which emitter triangle (origin block).
+inline constexpr uint32_t kEmitDir = 4;      ///< 2 numbers: emitted direction (origin block).
+
+/// First dimension of the light subpath's origin block.
+constexpr uint32_t light_origin() { return kLightSubpath; }
+/// First dimension of the block of the light subpath's vertex `k` (1 = first hit after the emitter).
+constexpr uint32_t light_vertex(int k) { return kLightSubpath + uint32_t(k) * kPerVertex; }
+
 }  // namespace gdr::dims

@@ -1,8 +1,9 @@
 // A base for integrators that estimate per-pixel quantities sample by sample.
 // It owns the parallel tile loop, time budgets, progress, NaN accounting and
 // mean/variance accumulation; subclasses only say what one sample computes.
-// Each sample writes only its own pixel's slots, so results are bit-identical
-// for any thread count (neighbour splats are gathered in finalize()).
+// Each sample writes its own pixel's slots, and splats to other pixels are
+// added in a fixed order, so results are bit-identical for any thread count
+// (G-PT's neighbour gradients are gathered in finalize()).
 #pragma once
 
 #include <algorithm>
@@ -22,6 +23,34 @@ struct SlotSpec {
     std::string name;       ///< Layer name (and prefix of its "<name>_variance" layer).
     int channels = 3;       ///< 1..4 channels.
     bool variance = false;  ///< Also track the per-sample variance.
+};
+
+/// Contributions of samples to pixels other than their own: light
+/// tracing's t = 1 connections land wherever the light subpath is seen from.
+/// They are gathered per tile and added to the film after each pass in tile
+/// order, so that images stay bit-identical for any thread count and batch
+/// size. Each is one sample's estimate for the pixel it lands in, in the
+/// units of the integrator's colour slot; the film divides their sum by the
+/// samples per pixel, as it divides a slot's.
+class SplatList {
+public:
+    /// Adds `value` at film point `film` (pixel units) to splat layer
+    /// `layer` (0 .. splat_layers() - 1); a point outside the film is dropped.
+    void add(const Vec2& film, const Color& value, int layer = 0) {
+        if (!(film.x >= 0.f && film.y >= 0.f && film.x < float(width_) && film.y < float(height_))) return;
+        const uint32_t px = std::min(uint32_t(film.x), uint32_t(width_ - 1));
+        const uint32_t py = std::min(uint32_t(film.y), uint32_t(height_ - 1));
+        splats_.push_back({py * uint32_t(width_) + px, uint32_t(layer), {value.r, value.g, value.b}});
+    }
+
+private:
+    friend class TiledIntegrator;
+    struct Splat {
+        uint32_t pixel, layer;
+        float v[3];
+    };
+    std::vector<Splat> splats_;
+    int width_ = 0, height_ = 0;
 };
 
 /// The per-pixel sums of a finished render, read as means and per-sample
@@ -60,6 +89,21 @@ public:
     Color variance_rgb(int s, int x, int y) const {
         return {variance(s, x, y, 0), variance(s, x, y, 1), variance(s, x, y, 2)};
     }
+    /// Mean of splat layer `layer` at (x, y): the sum of the splats that
+    /// landed there over the samples per pixel (the integrator's colour units).
+    Color splat_mean(int layer, int x, int y) const {
+        const double* a = &splat_sum_[(pixel(x, y) * splat_layers_ + layer) * 3];
+        return {float(a[0] / double(spp)), float(a[1] / double(spp)), float(a[2] / double(spp))};
+    }
+    /// Per-sample variance of splat layer `layer` at (x, y), as the sum of
+    /// the squared splats over the samples per pixel: the splats of one
+    /// sample index come from independent light subpaths, each with a mean
+    /// far below its spread, so their sum's variance is the sum of their
+    /// second moments (it omits the squared means, an overestimate below 1/W*H).
+    Color splat_variance(int layer, int x, int y) const {
+        const double* a = &splat_sum2_[(pixel(x, y) * splat_layers_ + layer) * 3];
+        return {float(a[0] / double(spp)), float(a[1] / double(spp)), float(a[2] / double(spp))};
+    }
     /// One image images() computes: a slot's mean, or its per-sample variance.
     struct Want {
         std::string slot;       ///< Slot name.
@@ -76,6 +120,9 @@ private:
     const double* sum2_ = nullptr;  // per pixel: `var_stride_` squared sums of the slots with a variance
     int stride_ = 0, var_stride_ = 0;
     std::vector<int> offset_, var_offset_;  // per slot: first channel in the sums / the squared sums (-1: none)
+    const double* splat_sum_ = nullptr;   // per pixel and splat layer: 3 sums of splats
+    const double* splat_sum2_ = nullptr;  // ... and of their squares
+    int splat_layers_ = 0;
 };
 
 /// Integrator skeleton: subclasses declare slots and implement sample().
@@ -107,6 +154,9 @@ protected:
     struct SampleJob {
         int x = 0, y = 0;  ///< Pixel column and row.
         Sampler sampler;   ///< The sample's stream, at dimension 0.
+        /// Where the sample's splats go (the tile's list) when the
+        /// integrator has splat layers; nullptr otherwise.
+        SplatList* splats = nullptr;
     };
     /// Computes jobs[0..n) as sample() each, job i writing its slots to
     /// out + i * stride (zero-initialised); adds the rays cast to `rays`. The
@@ -115,6 +165,11 @@ protected:
     /// stages of several samples in turn; results must not depend on n.
     virtual void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                               uint64_t& rays) const;
+    /// Number of splat layers (SplatList) the samples write, each three
+    /// channels; 0 for an integrator that writes only its own pixel's slots.
+    /// An integrator with splat layers implements sample_batch(), which is
+    /// then always called, and reads them in finalize() (Accumulated::splat_mean).
+    virtual int splat_layers() const { return 0; }
     /// The most jobs render() passes to sample_batch() at once (1: sample() per
     /// job; render() takes at most 16).
     virtual int batch_size() const { return 1; }

@@ -101,6 +101,26 @@ public:
     bool is_pure_delta() const { return (flags() & (kDiffuse | kGlossy)) == 0; }
 };
 
+/// What a path carries (Veach, "Robust Monte Carlo Methods for Light
+/// Transport Simulation", 1997, section 5.2): radiance along camera paths,
+/// importance along light paths. The two see different BSDFs where
+/// refraction compresses radiance (Bsdf values are radiance's; see
+/// transport_factor) and where shading normals differ from geometric ones.
+enum class TransportMode {
+    Radiance,    ///< Camera subpaths: wo points to the camera side, wi to the light.
+    Importance,  ///< Light subpaths: wo points to the light side, wi to the camera.
+};
+
+/// Factor that turns a Bsdf's value f(wo, wi) (radiance transport, local
+/// directions) into the value for `mode`: refraction scales radiance by
+/// 1/eta^2 (eta of wi's side over wo's) and importance not, so a
+/// transmitting pair in importance mode gets eta^2; 1 otherwise.
+inline float transport_factor(const Bsdf& bsdf, const Vec3& wo, const Vec3& wi, TransportMode mode) {
+    if (mode == TransportMode::Radiance || wo.z * wi.z >= 0.f || bsdf.eta() == 1.f) return 1.f;
+    const float eta = wo.z > 0.f ? bsdf.eta() : 1.f / bsdf.eta();
+    return eta * eta;
+}
+
 /// Lambertian reflection with albedo texture `kd`.
 std::shared_ptr<Bsdf> make_lambertian(std::shared_ptr<Texture> kd);
 /// Ideal mirror with reflectance r (Fresnel-free, as MTL illum 5).

@@ -37,6 +37,17 @@ public:
     }
     /// Film point (pixel units) where the direction from the eye through p lands; false if behind the camera.
     bool project(const Vec3& p, Vec2& film) const;
+    /// Importance We of the pinhole for unit world direction w leaving the
+    /// eye, normalised over the whole film (Veach 1997, section 8.1.1):
+    /// 1 / (A cos^4 theta) with A film_area_at_unit_distance() and theta
+    /// the angle to the viewing direction, so that its integral of
+    /// We cos theta over the directions through the film is 1 (units 1/sr);
+    /// 0 outside the film. Sets `film` to the raster point w passes through.
+    float importance(const Vec3& w, Vec2& film) const;
+    /// Solid-angle density (1/sr) of the primary-ray direction w when the
+    /// film point is uniform over the whole film, 1 / (A cos^3 theta); 0
+    /// outside the film. Light tracing's MIS compares it with light-subpath densities.
+    float direction_pdf(const Vec3& w) const;
     /// Area of the image plane at distance 1 (for importance / pdf conversions), in scene units^2.
     float film_area_at_unit_distance() const { return 4.f * tan_half_x_ * tan_half_y_; }
 
@@ -44,6 +55,7 @@ public:
     int height() const { return desc_.height; }  ///< Pixels down.
     const CameraDesc& desc() const { return desc_; }  ///< The description it was built from.
     const Vec3& forward() const { return forward_; }   ///< Unit viewing direction.
+    const Vec3& position() const { return desc_.position; }  ///< The eye point (scene units).
 
 private:
     CameraDesc desc_;

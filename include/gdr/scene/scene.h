@@ -151,6 +151,9 @@ public:
 
     /// Samples a point on an emitter by power then area (u_sel picks the triangle, u the point).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
+    /// The point sample_light() would pick with the same numbers, with the
+    /// radiance its front side emits: where a light subpath starts.
+    LightSample sample_emitter_point(float u_sel, const Vec2& u) const;
     /// Light-sample prefetching: for a sample_light(ref, u_sel, u) coming up
     /// soon (best a vertex ahead, at least before the cast that reaches the
     /// vertex), starts loading the alias-table bucket u_sel picks, which

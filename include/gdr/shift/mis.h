@@ -1,21 +1,18 @@
-// The one MIS weight of gradient-domain rendering: base path x of pixel i
-// against the offset y = T(x) seen as a base path of pixel j (PI, PIII).
+// The MIS weight of gradient-domain rendering: base path x of pixel i
+// against the offset y = T(x) seen as a base path of pixel j (Kettunen et
+// al., "Gradient-Domain Path Tracing", 2015; Manzi et al., "Temporal
+// Gradient-Domain Path Tracing", 2016). A case of the one MIS module
+// (gdr/path/mis.h) over four strategy densities.
 #pragma once
 
-#include <cmath>
+#include "gdr/path/mis.h"
 
 namespace gdr {
-
-/// Heuristic of the base/offset MIS.
-enum class MisHeuristic {
-    Power,    ///< beta = 2 (G-PT anchor)
-    Balance,  ///< beta = 1 (G-BDPT, survey)
-};
 
 /// Settings of the gradient MIS weight.
 struct GradientMis {
     MisHeuristic heuristic = MisHeuristic::Power;
-    /// Share of samples of the base's pixel, a = n_i / (n_i + n_j) (PIII adaptive sampling); 0.5 = uniform.
+    /// Share of samples of the base's pixel, a = n_i / (n_i + n_j) (temporal adaptive sampling); 0.5 = uniform.
     double sample_ratio = 0.5;
 };
 
@@ -30,14 +27,10 @@ struct GradientMis {
 inline double gradient_mis_weight(const GradientMis& m, double a_t, double a_other, double b_t, double b_other,
                                   double r) {
     const double sa = m.sample_ratio, sb = 1.0 - m.sample_ratio;
-    const double xt = sa * a_t, xo = sa * a_other;
+    const double xt = sa * a_t;
     // A zero density stays zero even when r overflowed.
     const double yt = b_t > 0.0 ? sb * r * b_t : 0.0, yo = b_other > 0.0 ? sb * r * b_other : 0.0;
-    if (!(xt > 0.0)) return 0.0;
-    if (m.heuristic == MisHeuristic::Balance) return xt / (xt + xo + yt + yo);
-    const double num = xt * xt;
-    const double w = num / (num + xo * xo + yt * yt + yo * yo);
-    return std::isfinite(w) ? w : 0.0;
+    return mis_weight(m.heuristic, xt, {xt, sa * a_other, yt, yo});
 }
 
 }  // namespace gdr

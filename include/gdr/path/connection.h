@@ -1,0 +1,75 @@
+// Connections between a light subpath and a camera subpath: the (s, t)
+// strategies of bidirectional path tracing (Veach and Guibas,
+// "Bidirectional Estimators for Light Transport", 1994; Lafortune and
+// Willems, "Bi-Directional Path Tracing", 1993), with their MIS weights.
+// Strategy (s, t) joins the light subpath's first s vertices to the camera
+// subpath's first t vertices: s = 0 is a camera walk that hits an emitter,
+// s = 1 next-event estimation (a fresh light sample, from the camera
+// vertex's own light numbers, as a path tracer draws them), t = 1 light
+// tracing (the light subpath seen by the camera, splatted where it lands).
+#pragma once
+
+#include <span>
+
+#include "gdr/path/mis.h"
+#include "gdr/path/subpath.h"
+
+namespace gdr {
+
+/// One (s, t) strategy: s light-subpath vertices, t camera-subpath vertices.
+/// Its paths have s + t vertices and s + t - 1 segments.
+struct Connection {
+    int s = 0;  ///< Vertices taken from the light subpath.
+    int t = 0;  ///< Vertices taken from the camera subpath (>= 1).
+};
+
+/// The densities of one full path z_0 (camera) .. z_{n-1} (light end) under
+/// every strategy, in the area measure (1/m^2): the representation the MIS
+/// weight of any (s, t) strategy reads.
+struct PathDensities {
+    std::vector<double> fwd;  ///< fwd[i]: density of a camera-direction walk producing z_i from z_{i-1} (i >= 1).
+    std::vector<double> rev;  ///< rev[i]: density of a light-direction walk producing z_i from z_{i+1}; rev[n-1] the light's origin density.
+    std::vector<uint8_t> delta;  ///< delta[i]: z_i scattered through a Dirac lobe (no strategy connects at it).
+    /// Number of vertices n.
+    int size() const { return int(fwd.size()); }
+    /// Resizes to n vertices, all densities 0 and no delta.
+    void resize(int n) { fwd.assign(n, 0.0), rev.assign(n, 0.0), delta.assign(n, 0); }
+};
+
+/// True if strategy t (camera vertices z_0 .. z_{t-1}) can sample a path of
+/// `d`: its connecting vertices are not delta (for s = 0, the light is not a
+/// delta light, which gdr does not have), and a two-vertex path (the camera
+/// sees the light) has only s = 0, since a pinhole cannot be hit.
+bool strategy_possible(const PathDensities& d, int t);
+/// MIS weight of strategy t for the path of `d` among all its possible
+/// strategies, by heuristic `h` over their full-path densities (Veach 1997,
+/// section 10.2: a strategy's density over another's is a product of
+/// rev / fwd ratios, a zero density of a delta step counting as 1).
+double strategy_weight(MisHeuristic h, const PathDensities& d, int t);
+
+/// The densities of the path that strategy `c` forms from the two
+/// subpaths: the subpaths' own, with those of the (up to) four vertices
+/// around the connection recomputed for the joined path. `light_end` is the
+/// light-side end z_t: light.v[c.s - 1], or for s = 1 the sampled light
+/// vertex; ignored for s = 0.
+void connection_densities(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
+                          const Vertex* light_end, PathDensities& d);
+
+/// What a connection contributes.
+struct ConnectionResult {
+    Color value{0.f};     ///< Unweighted estimate f / p of the path's measurement contribution (W/(m^2 sr)); 0 if none.
+    double weight = 0.0;  ///< Its MIS weight.
+    bool splat = false;   ///< t = 1: the value belongs to raster point `film`, not to the sample's pixel.
+    Vec2 film{0.f};       ///< Raster point (pixel units) of a t = 1 connection.
+};
+
+/// Evaluates strategy `c` for a sample's `light` and `camera` subpaths
+/// (camera_sampler is the camera subpath's stream, for s = 1's light
+/// numbers): the unweighted estimate (visibility tested), its raster point for
+/// t = 1, and, if asked (a weight is wanted and the value is not 0), its MIS
+/// weight by heuristic `h`. Requires c.t >= 1, c.t <= camera.size(),
+/// c.s <= light.size(), and (s, t) != (1, 1). Adds the shadow rays cast to `rays`.
+ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
+                         const Sampler& camera_sampler, MisHeuristic h, bool want_weight, uint64_t& rays);
+
+}  // namespace gdr

@@ -1,0 +1,104 @@
+// Subpaths: the path-space core of the bidirectional methods. A camera
+// subpath starts at the eye and carries importance's adjoint, radiance; a
+// light subpath starts on an emitter and carries importance. Every vertex
+// keeps the two area densities with which the walks of both directions would
+// produce it (pdf_fwd, pdf_rev), the representation of Veach's "Robust Monte
+// Carlo Methods for Light Transport Simulation" (1997, section 10.2) and of
+// pbrt-v4's bidirectional integrator: an (s, t) connection then finds every
+// other strategy's density by remapping a few of them (connection.h).
+// Measures are in the names: pdf_w is per steradian, pdf_a per square metre.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "gdr/core/sampler.h"
+#include "gdr/path/vertex.h"
+#include "gdr/scene/scene.h"
+
+namespace gdr {
+
+/// What a subpath vertex is.
+enum class VertexType : uint8_t {
+    Camera,   ///< The pinhole (a delta position): si.p is the eye, si.ng the viewing direction.
+    Light,    ///< A point on an emitter where a light subpath starts (or an s = 1 connection's sampled light).
+    Surface,  ///< A scattering point found by a walk.
+};
+
+/// One vertex of a subpath.
+struct Vertex {
+    VertexType type = VertexType::Surface;
+    SurfaceInteraction si;  ///< The point; a light vertex has p, ng, frame and prim (no material); a camera p and ng.
+    Vec3 wo{0.f};           ///< Unit world direction towards the previous vertex of its subpath (0 at the start).
+    /// Throughput of the subpath up to and including the arrival here: We/pdf
+    /// or Le/pdf at the start (a light vertex's Le/pdf_a, in W/(m^2 sr)
+    /// times m^2), times f |cos| / pdf_w per scattering, over roulette survival.
+    Color beta{0.f};
+    Color le{0.f};            ///< A light vertex's emitted radiance (W/(m^2 sr), front side); 0 otherwise.
+    double pdf_fwd = 0.0;     ///< Area density (1/m^2) with which its own subpath's walk produced it (0 after a delta lobe).
+    double pdf_rev = 0.0;     ///< Area density (1/m^2) with which the other direction's walk would produce it from the next vertex.
+    bool delta = false;       ///< The direction sampled here came from a Dirac lobe (so no strategy connects here).
+    uint32_t lobe = 0;        ///< LobeFlags of the lobe sampled here (0 if none was).
+    float roughness = 1.f;    ///< Roughness of that lobe (0 delta, GGX alpha, 1 diffuse).
+    float u_lobe = 0.f;       ///< Random number that chose the lobe (for replay).
+    Vec2 u_dir{0.f};          ///< Random numbers that chose the direction (for replay).
+
+    /// True for a vertex a connection can join: it has a non-delta
+    /// scattering (or is an endpoint) and is not a black surface.
+    bool connectible() const {
+        if (type != VertexType::Surface) return true;
+        return !si.material->pure_delta && !si.material->black;
+    }
+};
+
+/// A camera or light subpath: v[0] is its endpoint (camera or light vertex).
+struct Subpath {
+    TransportMode mode = TransportMode::Radiance;  ///< Radiance for camera subpaths, importance for light subpaths.
+    std::vector<Vertex> v;  ///< Vertices in walk order.
+    uint64_t rays = 0;      ///< Rays cast to build it.
+    /// Number of vertices, endpoint included.
+    int size() const { return int(v.size()); }
+};
+
+/// Limits of a subpath walk.
+struct WalkOptions {
+    /// Most vertices after the endpoint (a path of s + t vertices has s + t - 1
+    /// segments, bounded by the integrator's max_depth); -1 unlimited.
+    int max_vertices = -1;
+    /// Vertex index from which Russian roulette may end the walk (roulette
+    /// on the throughput relative to the endpoint's, as the path tracer's).
+    int rr_depth = 5;
+};
+
+/// Traces the camera subpath through film point `film` (pixel units): v[0]
+/// is the camera, v[k] the k-th hit, drawing vertex k's numbers from the
+/// dims::vertex(k) block of `sampler`, as the path tracer does.
+void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& sampler, const WalkOptions& opt,
+                          Subpath& path);
+/// Traces a light subpath: v[0] is a point on an emitter chosen by power and
+/// area with a cosine-distributed direction (numbers from
+/// dims::light_origin()), v[k] its k-th hit (dims::light_vertex(k)). Empty
+/// when the scene has no emitter.
+void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkOptions& opt, Subpath& path);
+
+/// Area density (1/m^2) at `next` with which vertex `cur`, reached from
+/// `prev` (nullptr at a subpath's start), samples the direction to it: the
+/// BSDF's density for a surface, the emission density (cos / pi) for a light,
+/// the film's direction density for the camera; converted with the cosine
+/// at `next` where it is a surface (none at the camera). 0 for a delta lobe.
+double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next);
+/// Area density (1/m^2) with which a light subpath would start at emitter
+/// point `v` (power and area selection); 0 where it does not emit.
+double pdf_light_origin(const Scene& scene, const Vertex& v);
+/// Area density (1/m^2) at `next` of the direction a light subpath starting
+/// at emitter point `v` would emit towards it (cos / pi, converted).
+double pdf_light_direction(const Vertex& v, const Vertex& next);
+/// Scattering value at surface vertex `v` from its previous vertex (v.wo)
+/// towards unit world direction w, for the vertex's subpath's transport
+/// `mode`, with the shading-normal correction that importance transport
+/// needs (Veach 1997, section 5.3): f (1/sr).
+Color vertex_f(const Vertex& v, const Vec3& w, TransportMode mode);
+/// |cos| between unit world direction w and the vertex's shading normal (1 at the camera).
+float abs_cos_shading(const Vertex& v, const Vec3& w);
+
+}  // namespace gdr

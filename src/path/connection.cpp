@@ -1,0 +1,158 @@
+#include "gdr/path/connection.h"
+
+#include "gdr/integrators/path_dims.h"
+
+namespace gdr {
+
+namespace {
+
+// A delta step's zero density stands for a factor common to every strategy
+// that can sample the path at all (Veach 1997, section 10.3.5).
+double remap0(double p) { return p != 0.0 ? p : 1.0; }
+
+}  // namespace
+
+void connection_densities(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c, const Vertex* q,
+                    PathDensities& d) {
+    const int s = c.s, t = c.t, n = s + t;
+    d.resize(n);
+    for (int i = 0; i < t; ++i) {
+        const Vertex& v = camera.v[i];
+        d.fwd[i] = v.pdf_fwd, d.rev[i] = v.pdf_rev, d.delta[i] = v.delta;
+    }
+    for (int j = 0; j < s; ++j) {
+        const Vertex& v = s == 1 ? *q : light.v[j];
+        const int i = n - 1 - j;
+        d.fwd[i] = v.pdf_rev, d.rev[i] = v.pdf_fwd, d.delta[i] = v.delta;
+    }
+    // The connecting vertices scatter towards each other, not by a delta lobe.
+    d.delta[t - 1] = 0;
+    if (s > 0) d.delta[t] = 0;
+    const Vertex& pt = camera.v[t - 1];
+    const Vertex* pt_prev = t >= 2 ? &camera.v[t - 2] : nullptr;
+    if (s == 0) {
+        d.rev[t - 1] = pdf_light_origin(scene, pt);
+        if (pt_prev) d.rev[t - 2] = pdf_light_direction(pt, *pt_prev);
+        return;
+    }
+    const Vertex* q_prev = s >= 2 ? &light.v[s - 2] : nullptr;
+    d.rev[t - 1] = pdf_area(scene, q_prev, *q, pt);
+    if (pt_prev) d.rev[t - 2] = pdf_area(scene, q, pt, *pt_prev);
+    d.fwd[t] = pdf_area(scene, pt_prev, pt, *q);
+    if (q_prev) d.fwd[t + 1] = pdf_area(scene, &pt, *q, *q_prev);
+}
+
+bool strategy_possible(const PathDensities& d, int t) {
+    const int n = d.size();
+    if (t < 1 || t > n) return false;
+    if (n == 2) return t == 2;
+    if (t == n) return true;
+    return !d.delta[t - 1] && !d.delta[t];
+}
+
+double strategy_weight(MisHeuristic h, const PathDensities& d, int t) {
+    const int n = d.size();
+    // Densities relative to strategy t's own: a strategy t' < t takes z_t' ..
+    // z_{t-1} from the light side instead, each vertex's fwd density replaced
+    // by its rev one; a strategy t' > t the other way round.
+    thread_local std::vector<double> p;
+    p.clear();
+    p.push_back(1.0);
+    double r = 1.0;
+    for (int u = t - 1; u >= 1; --u) {
+        r *= remap0(d.rev[u]) / remap0(d.fwd[u]);
+        if (strategy_possible(d, u)) p.push_back(r);
+    }
+    r = 1.0;
+    for (int u = t + 1; u <= n; ++u) {
+        r *= remap0(d.fwd[u - 1]) / remap0(d.rev[u - 1]);
+        if (strategy_possible(d, u)) p.push_back(r);
+    }
+    return mis_weight(h, 1.0, p);
+}
+
+ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
+                         const Sampler& camera_sampler, MisHeuristic h, bool want_weight, uint64_t& rays) {
+    ConnectionResult r;
+    const int s = c.s, t = c.t;
+    const Vertex& pt = camera.v[t - 1];
+    Vertex sampled;  // s = 1: the light point sampled from pt
+    const Vertex* q = nullptr;
+    if (s == 0) {
+        // The camera walk hit an emitter.
+        if (pt.type != VertexType::Surface || !pt.si.is_emitter()) return r;
+        r.value = pt.beta * pt.si.emitted(pt.wo);
+    } else if (t == 1) {
+        // Light tracing: the light subpath's vertex seen by the pinhole.
+        q = &light.v[s - 1];
+        if (q->type != VertexType::Surface || !q->connectible()) return r;
+        const Vertex& eye = camera.v[0];
+        const Vec3 d = eye.si.p - q->si.p;
+        const float dist = glm::length(d);
+        if (!(dist > 0.f)) return r;
+        const Vec3 w = d / dist;  // towards the eye
+        const float we = scene.camera().importance(-w, r.film);
+        if (!(we > 0.f)) return r;
+        const Color f = vertex_f(*q, w, TransportMode::Importance);
+        if (is_black(f)) return r;
+        const float cos_eye = glm::dot(eye.si.ng, -w);
+        r.value = q->beta * f * (abs_cos_shading(*q, w) * we * cos_eye / (dist * dist));
+        if (is_black(r.value)) return r;
+        ++rays;
+        if (!scene.visible(q->si.p, q->si.ng, eye.si.p, Vec3(0.f))) return ConnectionResult{};
+        r.splat = true;
+    } else if (s == 1) {
+        // Next-event estimation with the vertex's own light numbers.
+        if (!pt.connectible() || !scene.has_lights()) return r;
+        const uint32_t b = dims::vertex(t - 1);
+        const LightSample ls =
+            scene.sample_emitter_point(camera_sampler.at(b + dims::kLightSelect), camera_sampler.at2(b + dims::kLightPoint));
+        const Vec3 d = ls.p - pt.si.p;
+        const float dist = glm::length(d);
+        if (!(dist > 0.f) || !(ls.pdf_a > 0.f)) return r;
+        const Vec3 w = d / dist;
+        const float cos_light = glm::dot(ls.n, -w);
+        if (!(cos_light > 0.f)) return r;
+        const Color f = vertex_f(pt, w, TransportMode::Radiance);
+        if (is_black(f)) return r;
+        r.value = pt.beta * f * ls.radiance * (abs_cos_shading(pt, w) * cos_light / (dist * dist * ls.pdf_a));
+        if (is_black(r.value)) return r;
+        ++rays;
+        if (!scene.visible(pt.si.p, pt.si.ng, ls.p, ls.n)) return ConnectionResult{};
+        sampled.type = VertexType::Light;
+        sampled.si.p = ls.p, sampled.si.ng = ls.n, sampled.si.frame = Frame(ls.n), sampled.si.prim = ls.prim;
+        sampled.le = ls.radiance;
+        sampled.pdf_fwd = ls.pdf_a;
+        q = &sampled;
+    } else {
+        // Two surface vertices joined by a shadow ray.
+        q = &light.v[s - 1];
+        if (!q->connectible() || pt.type != VertexType::Surface || !pt.connectible()) return r;
+        const Vec3 d = pt.si.p - q->si.p;
+        const float dist = glm::length(d);
+        if (!(dist > 0.f)) return r;
+        const Vec3 w = d / dist;  // light side -> camera side
+        const Color fq = vertex_f(*q, w, TransportMode::Importance);
+        if (is_black(fq)) return r;
+        const Color fp = vertex_f(pt, -w, TransportMode::Radiance);
+        if (is_black(fp)) return r;
+        const float g = abs_cos_shading(*q, w) * abs_cos_shading(pt, w) / (dist * dist);
+        r.value = q->beta * fq * fp * pt.beta * g;
+        if (is_black(r.value)) return r;
+        ++rays;
+        if (!scene.visible(q->si.p, q->si.ng, pt.si.p, pt.si.ng)) return ConnectionResult{};
+    }
+    if (is_black(r.value)) return ConnectionResult{};
+    if (want_weight) {
+        if (s + t == 2) {
+            r.weight = 1.0;
+        } else {
+            thread_local PathDensities d;
+            connection_densities(scene, light, camera, c, q, d);
+            r.weight = strategy_weight(h, d, t);
+        }
+    }
+    return r;
+}
+
+}  // namespace gdr

@@ -1,0 +1,177 @@
+#include "gdr/path/subpath.h"
+
+#include "gdr/integrators/common.h"
+#include "gdr/integrators/path_dims.h"
+#include "gdr/scene/warp.h"
+
+namespace gdr {
+
+namespace {
+
+// Area density at `to` of solid-angle density pdf_w from `from`: the cosine
+// is the geometric normal's at a surface or light point, none at the camera.
+double to_area(double pdf_w, const Vertex& from, const Vertex& to) {
+    const Vec3 d = to.si.p - from.si.p;
+    const double d2 = double(glm::dot(d, d));
+    if (!(d2 > 0.0)) return 0.0;
+    double pdf = pdf_w / d2;
+    if (to.type != VertexType::Camera) pdf *= std::abs(double(glm::dot(to.si.ng, d))) / std::sqrt(d2);
+    return pdf;
+}
+
+// pbrt's and Veach's shading-normal correction of importance transport:
+// |wo.ns| |wi.ng| / (|wo.ng| |wi.ns|), so that light subpaths see the
+// adjoint of the BSDF the camera side sees through shading normals.
+float shading_correction(const SurfaceInteraction& si, const Vec3& wo, const Vec3& wi, TransportMode mode) {
+    if (mode == TransportMode::Radiance) return 1.f;
+    const float num = std::abs(glm::dot(wo, si.frame.n)) * std::abs(glm::dot(wi, si.ng));
+    const float den = std::abs(glm::dot(wo, si.ng)) * std::abs(glm::dot(wi, si.frame.n));
+    return den > 0.f ? num / den : 0.f;
+}
+
+// Extends `path` from its last vertex along `ray`, whose direction that
+// vertex sampled with solid-angle density pdf_w; `beta` is the throughput
+// the ray carries and `rel` its part after the endpoint (for roulette).
+// Vertex k draws from block(k).
+template <class Block>
+void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, const Sampler& sampler,
+          const WalkOptions& opt, Block block, Subpath& path) {
+    for (int k = 1; opt.max_vertices < 0 || k <= opt.max_vertices; ++k) {
+        Vertex v;
+        ++path.rays;
+        if (!scene.intersect(ray, v.si)) return;
+        v.type = VertexType::Surface;
+        v.wo = -ray.d;
+        v.beta = beta;
+        Vertex& prev = path.v.back();
+        v.pdf_fwd = to_area(pdf_w, prev, v);
+        path.v.push_back(v);
+        if (opt.max_vertices >= 0 && k == opt.max_vertices) return;
+        Vertex& x = path.v.back();
+        const SurfaceInteraction& si = x.si;
+        if (si.material->black) return;
+        const Bsdf& bsdf = *si.material->bsdf;
+        const Vec3 wo = si.frame.to_local(x.wo);
+        const uint32_t b = block(k);
+        x.u_lobe = sampler.at(b + dims::kBsdfLobe);
+        x.u_dir = sampler.at2(b + dims::kBsdfDir);
+        const auto bs = bsdf.sample(wo, si.uv, x.u_lobe, x.u_dir);
+        if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) return;
+        const Vec3 wi_world = si.frame.to_world(bs->wi);
+        x.lobe = bs->lobe, x.roughness = bs->roughness, x.delta = bs->is_delta();
+        const Color step = bs->f * (transport_factor(bsdf, wo, bs->wi, path.mode) * abs_cos_theta(bs->wi) / bs->pdf *
+                                    shading_correction(si, x.wo, wi_world, path.mode));
+        beta *= step, rel *= step;
+        // A delta lobe has no density in the area measure: Veach's remapping
+        // (connection.cpp) treats its zero densities as 1 and skips the
+        // strategies that would connect there.
+        pdf_w = x.delta ? 0.0 : double(bs->pdf);
+        const double pdf_rev_w = x.delta ? 0.0 : double(bsdf.pdf(bs->wi, wo, si.uv));
+        path.v[path.v.size() - 2].pdf_rev = to_area(pdf_rev_w, x, path.v[path.v.size() - 2]);
+        if (k >= opt.rr_depth) {
+            const float q = roulette_survival(rel);
+            if (sampler.at(b + dims::kRoulette) >= q) return;
+            beta /= q, rel /= q;
+        }
+        if (is_black(beta)) return;
+        ray = spawn_ray(si, wi_world);
+    }
+}
+
+}  // namespace
+
+void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& sampler, const WalkOptions& opt,
+                          Subpath& path) {
+    path.mode = TransportMode::Radiance;
+    path.v.clear();
+    path.rays = 0;
+    const Camera& cam = scene.camera();
+    const Ray ray = cam.generate_ray(film);
+    Vertex c;
+    c.type = VertexType::Camera;
+    c.si.p = ray.o;
+    c.si.ng = cam.forward();
+    c.si.frame = Frame(cam.forward());
+    // The pixel's own sample has We / pdf = 1: the film point is uniform in
+    // the pixel and the measurement is the pixel's mean.
+    c.beta = Color(1.f);
+    c.pdf_fwd = 1.0;
+    path.v.push_back(c);
+    walk(scene, ray, Color(1.f), Color(1.f), cam.direction_pdf(ray.d), sampler, opt,
+         [](int k) { return dims::vertex(k); }, path);
+}
+
+void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkOptions& opt, Subpath& path) {
+    path.mode = TransportMode::Importance;
+    path.v.clear();
+    path.rays = 0;
+    if (!scene.has_lights()) return;
+    const uint32_t b = dims::light_origin();
+    const LightSample ls = scene.sample_emitter_point(sampler.at(b + dims::kEmitSelect), sampler.at2(b + dims::kEmitPoint));
+    if (!(ls.pdf_a > 0.f) || is_black(ls.radiance)) return;
+    Vertex l;
+    l.type = VertexType::Light;
+    l.si.p = ls.p;
+    l.si.ng = ls.n;
+    l.si.frame = Frame(ls.n);
+    l.si.prim = ls.prim;
+    l.le = ls.radiance;
+    l.pdf_fwd = ls.pdf_a;
+    l.beta = ls.radiance / ls.pdf_a;
+    const Vec3 local = warp::square_to_cosine_hemisphere(sampler.at2(b + dims::kEmitDir));
+    const float pdf_dir = warp::cosine_hemisphere_pdf(local);
+    path.v.push_back(l);
+    if (!(pdf_dir > 0.f)) return;
+    const Vec3 w = l.si.frame.to_world(local);
+    const Ray ray{offset_ray_origin(ls.p, ls.n, w), w, 0.f, kInf};
+    // |cos| / pdf of a cosine-distributed direction is pi.
+    walk(scene, ray, l.beta * (abs_cos_theta(local) / pdf_dir), Color(1.f), pdf_dir, sampler, opt,
+         [](int k) { return dims::light_vertex(k); }, path);
+}
+
+double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next) {
+    const Vec3 d = next.si.p - cur.si.p;
+    const float len = glm::length(d);
+    if (!(len > 0.f)) return 0.0;
+    const Vec3 w = d / len;
+    double pdf_w = 0.0;
+    switch (cur.type) {
+        case VertexType::Camera: pdf_w = scene.camera().direction_pdf(w); break;
+        case VertexType::Light: pdf_w = std::max(0.f, glm::dot(cur.si.ng, w)) * kInvPi; break;
+        case VertexType::Surface: {
+            if (!prev) return 0.0;
+            const Vec3 to_prev = glm::normalize(prev->si.p - cur.si.p);
+            const SurfaceInteraction& si = cur.si;
+            pdf_w = si.material->bsdf->pdf(si.frame.to_local(to_prev), si.frame.to_local(w), si.uv);
+            break;
+        }
+    }
+    return to_area(pdf_w, cur, next);
+}
+
+double pdf_light_origin(const Scene& scene, const Vertex& v) {
+    if (v.type == VertexType::Light) return v.pdf_fwd;
+    if (v.type != VertexType::Surface || !v.si.is_emitter()) return 0.0;
+    return scene.light_pdf_a(v.si.prim);
+}
+
+double pdf_light_direction(const Vertex& v, const Vertex& next) {
+    const Vec3 d = next.si.p - v.si.p;
+    const float len = glm::length(d);
+    if (!(len > 0.f)) return 0.0;
+    return to_area(std::max(0.f, glm::dot(v.si.ng, d / len)) * kInvPi, v, next);
+}
+
+Color vertex_f(const Vertex& v, const Vec3& w, TransportMode mode) {
+    if (v.type != VertexType::Surface) return Color(0.f);
+    const SurfaceInteraction& si = v.si;
+    const Bsdf& bsdf = *si.material->bsdf;
+    const Vec3 wo = si.frame.to_local(v.wo), wi = si.frame.to_local(w);
+    return bsdf.eval(wo, wi, si.uv) * (transport_factor(bsdf, wo, wi, mode) * shading_correction(si, v.wo, w, mode));
+}
+
+float abs_cos_shading(const Vertex& v, const Vec3& w) {
+    return v.type == VertexType::Camera ? 1.f : std::abs(glm::dot(v.si.frame.n, w));
+}
+
+}  // namespace gdr
