@@ -12,87 +12,14 @@
 #include "gdr/io/scene_file.h"
 #include "gdr/shift/steps.h"
 #include "gdr/shift/validate.h"
+#include "block_stats.h"
 
 using namespace gdr;
+using namespace gdr::test;
 
 namespace {
 
 const char* const kShifts[] = {"half-vector", "reconnection", "replay", "replay-reconnect"};
-
-std::string box(const std::string& variant) {
-    return std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/CornellBox-" + variant + ".obj";
-}
-
-// The McGuire box at a small resolution, so statistical tests can afford many runs.
-std::unique_ptr<Scene> small_box(const std::string& variant, int res) {
-    TriangleMesh mesh;
-    std::vector<Material> mats;
-    load_obj(box(variant), Mat4(1.f), mesh, mats);
-    CameraDesc cd;
-    cd.position = {0.f, 1.f, 3.5f};
-    cd.target = {0.f, 1.f, 0.f};
-    cd.fov_deg = 45.f;
-    cd.width = cd.height = res;
-    return std::make_unique<Scene>(std::move(mesh), std::move(mats), Camera(cd), box(variant));
-}
-
-FrameBuffer render(const Scene& scene, const std::string& integrator, const Params& p, long long spp, uint64_t seed) {
-    auto integ = integrator_registry().create(integrator, p);
-    RenderSettings st;
-    st.spp = spp;
-    st.seed = seed;
-    FrameBuffer fb;
-    integ->render(scene, st, fb);
-    return fb;
-}
-
-// Per-block means of a per-pixel statistic over independent runs: mean and standard error per block.
-struct BlockStats {
-    std::vector<double> mean, se;
-};
-
-template <typename F>
-BlockStats block_stats(int runs, int w, int h, int block, F&& value_of_run) {
-    const int bw = (w + block - 1) / block, bh = (h + block - 1) / block;
-    std::vector<std::vector<double>> per_run(bw * bh);
-    for (int r = 0; r < runs; ++r) {
-        std::vector<double> sum(bw * bh, 0.0), cnt(bw * bh, 0.0);
-        value_of_run(r, [&](int x, int y, double v) {
-            const int b = (y / block) * bw + x / block;
-            sum[b] += v, cnt[b] += 1.0;
-        });
-        for (size_t b = 0; b < sum.size(); ++b) per_run[b].push_back(cnt[b] > 0 ? sum[b] / cnt[b] : 0.0);
-    }
-    BlockStats s;
-    for (const auto& v : per_run) {
-        double m = 0.0, q = 0.0;
-        for (double x : v) m += x;
-        m /= double(v.size());
-        for (double x : v) q += (x - m) * (x - m);
-        s.mean.push_back(m);
-        s.se.push_back(std::sqrt(q / double(v.size() - 1) / double(v.size())));
-    }
-    return s;
-}
-
-double grey(const Image& img, int x, int y) {
-    const Color c = img.rgb(x, y);
-    return (double(c.r) + c.g + c.b) / 3.0;
-}
-
-// Largest |z| over blocks between two sets of block statistics.
-double max_z(const BlockStats& a, const BlockStats& b) {
-    double worst = 0.0;
-    for (size_t i = 0; i < a.mean.size(); ++i) {
-        const double se = std::sqrt(a.se[i] * a.se[i] + b.se[i] * b.se[i]);
-        if (se == 0.0) {
-            REQUIRE(std::abs(a.mean[i] - b.mean[i]) < 1e-6);
-            continue;
-        }
-        worst = std::max(worst, std::abs(a.mean[i] - b.mean[i]) / se);
-    }
-    return worst;
-}
 
 }  // namespace
 

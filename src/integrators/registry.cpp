@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "gdr/integrators/bdpt.h"
 #include "gdr/integrators/gpt.h"
 #include "gdr/integrators/pt.h"
 
@@ -11,6 +12,7 @@ namespace gdr {
 void register_builtin_integrators(Registry<Integrator>& r) {
     register_pt(r);
     register_gpt(r);
+    register_bdpt(r);
 }
 
 Registry<Integrator>& integrator_registry() {

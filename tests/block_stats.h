@@ -1,0 +1,114 @@
+// Block statistics over independent renders, the statistical tool of the
+// integrator tests: per-block means of a per-pixel value over runs with
+// different seeds, their standard errors from the run-to-run spread (no
+// per-pixel variance estimate is trusted), and the largest block z between
+// two such sets. Plus the McGuire Cornell boxes at test resolutions.
+#pragma once
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/scene_file.h"
+
+namespace gdr::test {
+
+inline std::string box(const std::string& variant) {
+    return std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/CornellBox-" + variant + ".obj";
+}
+
+// The McGuire box at a small resolution, so statistical tests can afford many runs.
+inline std::unique_ptr<Scene> small_box(const std::string& variant, int res) {
+    TriangleMesh mesh;
+    std::vector<Material> mats;
+    load_obj(box(variant), Mat4(1.f), mesh, mats);
+    CameraDesc cd;
+    cd.position = {0.f, 1.f, 3.5f};
+    cd.target = {0.f, 1.f, 0.f};
+    cd.fov_deg = 45.f;
+    cd.width = cd.height = res;
+    return std::make_unique<Scene>(std::move(mesh), std::move(mats), Camera(cd), box(variant));
+}
+
+inline FrameBuffer render(const Scene& scene, const std::string& integrator, const Params& p, long long spp, uint64_t seed) {
+    auto integ = integrator_registry().create(integrator, p);
+    RenderSettings st;
+    st.spp = spp;
+    st.seed = seed;
+    FrameBuffer fb;
+    integ->render(scene, st, fb);
+    return fb;
+}
+
+// Per-block means of a per-pixel statistic over independent runs: mean and standard error per block.
+struct BlockStats {
+    std::vector<double> mean, se;
+};
+
+template <typename F>
+BlockStats block_stats(int runs, int w, int h, int block, F&& value_of_run) {
+    const int bw = (w + block - 1) / block, bh = (h + block - 1) / block;
+    std::vector<std::vector<double>> per_run(bw * bh);
+    for (int r = 0; r < runs; ++r) {
+        std::vector<double> sum(bw * bh, 0.0), cnt(bw * bh, 0.0);
+        value_of_run(r, [&](int x, int y, double v) {
+            const int b = (y / block) * bw + x / block;
+            sum[b] += v, cnt[b] += 1.0;
+        });
+        for (size_t b = 0; b < sum.size(); ++b) per_run[b].push_back(cnt[b] > 0 ? sum[b] / cnt[b] : 0.0);
+    }
+    BlockStats s;
+    for (const auto& v : per_run) {
+        double m = 0.0, q = 0.0;
+        for (double x : v) m += x;
+        m /= double(v.size());
+        for (double x : v) q += (x - m) * (x - m);
+        s.mean.push_back(m);
+        s.se.push_back(std::sqrt(q / double(v.size() - 1) / double(v.size())));
+    }
+    return s;
+}
+
+inline double grey(const Image& img, int x, int y) {
+    const Color c = img.rgb(x, y);
+    return (double(c.r) + c.g + c.b) / 3.0;
+}
+
+// Largest |z| over blocks between two sets of block statistics.
+inline double max_z(const BlockStats& a, const BlockStats& b) {
+    double worst = 0.0;
+    for (size_t i = 0; i < a.mean.size(); ++i) {
+        const double se = std::sqrt(a.se[i] * a.se[i] + b.se[i] * b.se[i]);
+        if (se == 0.0) {
+            REQUIRE(std::abs(a.mean[i] - b.mean[i]) < 1e-6);
+            continue;
+        }
+        worst = std::max(worst, std::abs(a.mean[i] - b.mean[i]) / se);
+    }
+    return worst;
+}
+
+// Block statistics of the grey value of layer `layer` over renders `fbs`
+// (one per run), in blocks of `block` pixels.
+inline BlockStats grey_stats(const std::vector<FrameBuffer>& fbs, const std::string& layer, int block) {
+    const int w = fbs.at(0).width(), h = fbs.at(0).height();
+    return block_stats(int(fbs.size()), w, h, block, [&](int r, auto&& add) {
+        const Image& c = fbs[r].get(layer);
+        for (int y = 0; y < h; ++y)
+            for (int x = 0; x < w; ++x) add(x, y, grey(c, x, y));
+    });
+}
+
+// `runs` renders of `scene` by `integrator` with seeds seed0, seed0 + 1, ...
+inline std::vector<FrameBuffer> render_runs(const Scene& scene, const std::string& integrator, const Params& p,
+                                            long long spp, int runs, uint64_t seed0) {
+    std::vector<FrameBuffer> fbs;
+    for (int r = 0; r < runs; ++r) fbs.push_back(render(scene, integrator, p, spp, seed0 + uint64_t(r)));
+    return fbs;
+}
+
+}  // namespace gdr::test
