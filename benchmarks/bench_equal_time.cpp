@@ -1,8 +1,8 @@
-// Equal-time comparison of PT, G-PT + L1 and G-PT + L2 on real scenes.
+// Equal-time comparison of PT, G-PT + L1, G-PT + L2 and BDPT on real scenes.
 //
 // For each scene: a cached high-spp PT reference, then for every time budget
-// of a geometric series one PT render and one G-PT render (interleaved, so
-// load changes on a shared machine hit both alike). G-PT's time is render +
+// of a geometric series one PT, one G-PT and one BDPT render (interleaved, so
+// load changes on a shared machine hit all alike). G-PT's time is render +
 // reconstruction wall time: its render budget is shortened by the L1 solve
 // time measured once beforehand, and each method is placed at its measured
 // total time. Error: relMSE with the thesis convention (per channel,
@@ -278,9 +278,10 @@ struct Equal {
     double e_pt = 0, e_l1 = 0, e_l2 = 0, budget = 0;
 };
 
-const char* const kMethods[] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal"};
-const Rgb8 kColors[] = {{30, 30, 30}, {215, 48, 39}, {44, 123, 182}, {120, 170, 90}};
-const char* const kLabels[] = {"PT", "G-PT + L1", "G-PT + L2", "G-PT primal (no solve)"};
+constexpr int kNumMethods = 5;
+const char* const kMethods[kNumMethods] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal", "bdpt"};
+const Rgb8 kColors[kNumMethods] = {{30, 30, 30}, {215, 48, 39}, {44, 123, 182}, {120, 170, 90}, {150, 80, 170}};
+const char* const kLabels[kNumMethods] = {"PT", "G-PT + L1", "G-PT + L2", "G-PT primal (no solve)", "BDPT"};
 
 // The crop window (size s, stride s/4) where PT's relative squared error is largest:
 // where the methods differ most visibly.
@@ -433,8 +434,8 @@ int main(int argc, char** argv) try {
     std::ostringstream summary;
     summary << kTimeCharge << "\n\n" << settings << "\n\n";
     summary << "| scene | resolution | PT relMSE at " << o.budgets.back()
-            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up |\n"
-            << "|---|---|---|---|---|---|---|\n";
+            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up | BDPT speed-up |\n"
+            << "|---|---|---|---|---|---|---|---|\n";
     std::vector<std::string> console;
     std::ofstream csv(fs::path(o.out) / "results.csv");
     csv << "scene,width,height,method,budget_s,seconds,render_s,solve_s,spp,relmse,mse,ssim\n";
@@ -455,6 +456,7 @@ int main(int argc, char** argv) try {
 
         auto pt = integrator_registry().create("pt", Params());
         auto gpt = integrator_registry().create("gpt", gpt_params);
+        auto bdpt = integrator_registry().create("bdpt", Params());
         // The L1 solve time (independent of the sample count) is taken out of G-PT's
         // render budget so that render + solve matches the budget.
         RenderSettings st;
@@ -467,7 +469,7 @@ int main(int argc, char** argv) try {
         const double l1_est = since(t0);
         std::printf("  L1 solve %.3f s at this resolution\n", l1_est);
 
-        std::vector<CurvePoint> curve[4];
+        std::vector<CurvePoint> curve[kNumMethods];
         Equal eq;
         const size_t crop_i = o.budgets.size() / 2;
         eq.budget = o.budgets[crop_i];
@@ -511,16 +513,24 @@ int main(int argc, char** argv) try {
             const double e2 = add(2, T, render_s + s2, render_s, s2, rs.spp, l2);
             add(3, T, render_s, render_s, 0, rs.spp, fb.get("color"));
             if (i == crop_i) eq.l1 = std::move(l1), eq.l2 = std::move(l2), eq.e_l1 = e1, eq.e_l2 = e2;
+
+            st.seed = uint64_t(1001 + i);
+            st.time_budget = T;
+            t0 = Clock::now();
+            rs = bdpt->render(*scene, st, fb);
+            secs = since(t0);
+            add(4, T, secs, secs, 0, rs.spp, fb.get("color"));
         }
 
         // Speed-up at PT's error at the largest budget.
         const CurvePoint last = curve[0].back();
         const ReachTime r1 = time_to_reach(curve[1], last.error), r2 = time_to_reach(curve[2], last.error),
-                        r3 = time_to_reach(curve[3], last.error);
+                        r3 = time_to_reach(curve[3], last.error), r4 = time_to_reach(curve[4], last.error);
         char line[512];
-        std::snprintf(line, sizeof line, "%-14s PT relMSE %.4g at %.1f s (ref own %.2g) | L1 %s | L2 %s | primal %s",
+        std::snprintf(line, sizeof line, "%-14s PT relMSE %.4g at %.1f s (ref own %.2g) | L1 %s | L2 %s | primal %s | BDPT %s",
                       spec.name.c_str(), last.error, last.seconds, ref_self, fmt_speedup(last.seconds, r1, curve[1]).c_str(),
-                      fmt_speedup(last.seconds, r2, curve[2]).c_str(), fmt_speedup(last.seconds, r3, curve[3]).c_str());
+                      fmt_speedup(last.seconds, r2, curve[2]).c_str(), fmt_speedup(last.seconds, r3, curve[3]).c_str(),
+                      fmt_speedup(last.seconds, r4, curve[4]).c_str());
         console.push_back(line);
         std::printf("  %s\n", line);
         char cell[96];
@@ -528,9 +538,10 @@ int main(int argc, char** argv) try {
         summary << "| " << spec.name << " | " << W << "x" << H << " | " << cell << " | ";
         std::snprintf(cell, sizeof cell, "%.2g", ref_self);
         summary << cell << " | " << fmt_speedup(last.seconds, r1, curve[1]) << " | " << fmt_speedup(last.seconds, r2, curve[2])
-                << " | " << fmt_speedup(last.seconds, r3, curve[3]) << " |\n";
-        const ReachTime* reach[4] = {nullptr, &r1, &r2, &r3};
-        for (int m = 1; m < 4; ++m) {
+                << " | " << fmt_speedup(last.seconds, r3, curve[3]) << " | " << fmt_speedup(last.seconds, r4, curve[4])
+                << " |\n";
+        const ReachTime* reach[kNumMethods] = {nullptr, &r1, &r2, &r3, &r4};
+        for (int m = 1; m < kNumMethods; ++m) {
             double v = 0;
             const std::string txt = fmt_speedup(last.seconds, *reach[m], curve[m], &v);
             speed << spec.name << ',' << kMethods[m] << ',' << last.error << ',' << last.seconds << ','
@@ -542,7 +553,7 @@ int main(int argc, char** argv) try {
         plot.title = spec.name + "  " + std::to_string(W) + "x" + std::to_string(H);
         plot.xlabel = "wall time per image [s] (G-PT: render + reconstruction)";
         plot.ylabel = "relMSE (eps 0.01)";
-        for (int m = 0; m < 4; ++m) plot.series.push_back({kLabels[m], kColors[m], curve[m], m == 3});
+        for (int m = 0; m < kNumMethods; ++m) plot.series.push_back({kLabels[m], kColors[m], curve[m], m == 3});
         plot.xticks = o.budgets;
         plot.hline = last.error;
         plot.hline_label = "PT at the largest budget";
