@@ -13,13 +13,11 @@
 
 #include <cmath>
 #include <cstring>
-#include <fstream>
 #include <random>
-
-#include <nlohmann/json.hpp>
 
 #include "block_stats.h"
 #include "chi2.h"
+#include "cycles_compare.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/integrators/path_dims.h"
@@ -416,12 +414,11 @@ TEST_CASE("bdpt: strategy layers add up to the image of short paths; parameters 
 }
 
 TEST_CASE("bdpt: Cornell boxes agree with Blender Cycles", "[bdpt][statistical][reference]") {
-    // As pt's test of the same name (test_pt.cpp): Cycles' block means and
-    // standard errors (tests/data/cycles-*.json) against gdr's block means,
-    // whose variances come from the per-pixel variance layer; bdpt's includes
-    // the splats' estimated share (Accumulated::splat_variance). Every block
-    // and channel is tested at a family-wise level of 1e-3, and so is the
-    // image mean; the power check rejects an image 0.5% too bright or dark.
+    // As pt's test of the same name (test_pt.cpp, cycles_compare.h), with
+    // block variances from the per-pixel variance layer, which for bdpt
+    // includes the splats' estimated share (Accumulated::splat_variance).
+    // Every block and channel is tested at a family-wise level of 1e-3, and
+    // so is the image mean; the power check rejects an image 0.5% off.
     struct Case {
         const char* scene;
         const char* reference;
@@ -430,48 +427,14 @@ TEST_CASE("bdpt: Cornell boxes agree with Blender Cycles", "[bdpt][statistical][
     const Case c = GENERATE(Case{"scenes/cornell-box/scene.json", "cycles-cornell-box.json", 8},
                             Case{"tests/scenes/cornell-cc0-256.json", "cycles-cornell-cc0-256.json", 32});
     INFO(c.scene);
-    std::ifstream in(std::string(GDR_SOURCE_DIR "/tests/data/") + c.reference);
-    REQUIRE(in);
-    const nlohmann::json ref = nlohmann::json::parse(in);
+    const CyclesReference ref(c.reference);
     const SceneFile sf = load_scene_file(std::string(GDR_SOURCE_DIR "/") + c.scene);
-    const int b = ref["block"], nx = ref["blocks_x"], n_blocks = int(ref["mean"].size());
-    REQUIRE(sf.scene->camera().width() == ref["width"].get<int>());
+    REQUIRE(sf.scene->camera().width() == ref.width);
     const FrameBuffer fb = render(*sf.scene, "bdpt", Params(), c.spp, 7);
-    const Image &color = fb.get("color"), &variance = fb.get("variance");
-    // Bonferroni thresholds at family-wise 1e-3 (normal tails).
-    const auto threshold = [](int tests) {
-        double z = 3.0;
-        while (std::erfc(z / std::sqrt(2.0)) > 1e-3 / tests) z += 0.01;
-        return z;
-    };
-    // Largest |z| of the blocks and of the image's channel means, with the
-    // render's values scaled by `gain` (1: as rendered).
-    struct Worst {
-        double block = 0.0, image = 0.0;
-    };
-    const auto worst = [&](double gain) {
-        Worst w;
-        for (int ch = 0; ch < 3; ++ch) {
-            double image_mean = 0.0, image_var = 0.0;
-            for (int i = 0; i < n_blocks; ++i) {
-                const int x0 = (i % nx) * b, y0 = (i / nx) * b;
-                double m = 0.0, v = 0.0;
-                for (int y = y0; y < y0 + b; ++y)
-                    for (int x = x0; x < x0 + b; ++x) m += color.at(x, y, ch), v += variance.at(x, y, ch);
-                m /= double(b) * b, v /= double(c.spp) * b * b * b * b;
-                const double rm = ref["mean"][i][ch], rs = ref["stderr"][i][ch];
-                w.block = std::max(w.block, std::abs(gain * m - rm) / std::sqrt(gain * gain * v + rs * rs));
-                image_mean += m / n_blocks, image_var += v / (double(n_blocks) * n_blocks);
-            }
-            const double rm = ref["image_mean"][ch], rs = ref["image_stderr"][ch];
-            w.image = std::max(w.image, std::abs(gain * image_mean - rm) / std::sqrt(gain * gain * image_var + rs * rs));
-        }
-        return w;
-    };
-    const Worst as_rendered = worst(1.0);
+    const CyclesWorst as_rendered = compare_with_cycles(fb, ref, 1.0);
     CAPTURE(as_rendered.block, as_rendered.image);
-    CHECK(as_rendered.block < threshold(n_blocks * 3));
-    CHECK(as_rendered.image < threshold(3));
-    CHECK(worst(1.005).image > threshold(3));
-    CHECK(worst(0.995).image > threshold(3));
+    CHECK(as_rendered.block < z_threshold(ref.blocks * 3));
+    CHECK(as_rendered.image < z_threshold(3));
+    CHECK(compare_with_cycles(fb, ref, 1.005).image > z_threshold(3));
+    CHECK(compare_with_cycles(fb, ref, 0.995).image > z_threshold(3));
 }

@@ -29,8 +29,10 @@
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/io/scene_file.h"
+#include "cycles_compare.h"
 
 using namespace gdr;
+using gdr::test::z_threshold;
 using Catch::Matchers::Contains;
 namespace fs = std::filesystem;
 
@@ -92,15 +94,6 @@ double max_pixel_z(const FrameBuffer& fb, const std::function<double(int, int, i
         for (int x = 0; x < fb.width(); ++x)
             for (int ch = 0; ch < 3; ++ch) worst = std::max(worst, std::abs(z_known(region(fb, ch, x, y, x + 1, y + 1), expected(x, y, ch))));
     return worst;
-}
-
-// Threshold |z| for `tests` two-sided tests at family-wise level 1e-3 (Bonferroni),
-// from the normal tail bound; 4.0 at one test, ~5.3 at 1000.
-double z_threshold(int tests) {
-    const double alpha = 1e-3 / tests;
-    double z = 3.0;
-    while (std::erfc(z / std::sqrt(2.0)) > alpha) z += 0.01;
-    return z;
 }
 
 // Radiance leaving a Lambertian floor point under a parallel rectangle:
@@ -251,9 +244,7 @@ TEST_CASE("pt: NEE + MIS and BSDF sampling agree on the Cornell box", "[pt][stat
 }
 
 TEST_CASE("pt: Cornell boxes agree with Blender Cycles (an independent production renderer)", "[pt][statistical][reference]") {
-    // tests/data/cycles-*.json hold Cycles' block means of a scene and their
-    // standard errors (scripts/cycles/reference.py: Lambertian Kd, one-sided
-    // Ke, box filter, no clamping; 8 runs x 256 spp). gdr's block means come
+    // Cycles' block means of each scene (cycles_compare.h) against gdr's,
     // with variances from its per-pixel sample variances. Every block and
     // channel is tested at a family-wise level of 1e-3, and so is the whole
     // image's mean.
@@ -271,38 +262,14 @@ TEST_CASE("pt: Cornell boxes agree with Blender Cycles (an independent productio
     const Case c = GENERATE(Case{"scenes/cornell-box/scene.json", "cycles-cornell-box.json", 32},
                             Case{"tests/scenes/cornell-cc0-256.json", "cycles-cornell-cc0-256.json", 128});
     INFO(c.scene);
-    std::ifstream in(std::string(GDR_SOURCE_DIR "/tests/data/") + c.reference);
-    REQUIRE(in);
-    const nlohmann::json ref = nlohmann::json::parse(in);
+    const test::CyclesReference ref(c.reference);
     const SceneFile sf = load_scene_file(std::string(GDR_SOURCE_DIR "/") + c.scene);
-    const int b = ref["block"], nx = ref["blocks_x"];
-    REQUIRE(sf.scene->camera().width() == ref["width"].get<int>());
-    REQUIRE(sf.scene->camera().height() == ref["height"].get<int>());
-    const int n_blocks = int(ref["mean"].size());
-    REQUIRE(n_blocks == nx * ref["blocks_y"].get<int>());
-    // Largest |z| of the blocks and of the whole image's channel means, with
-    // the render's values scaled by `gain` (1: as rendered).
-    struct Worst {
-        double block = 0, image = 0;
-    };
-    auto compare = [&](const FrameBuffer& fb, double gain) {
-        Worst worst;
-        for (int ch = 0; ch < 3; ++ch) {
-            Estimate image;
-            for (int i = 0; i < n_blocks; ++i) {
-                const int x0 = (i % nx) * b, y0 = (i / nx) * b;
-                const Estimate g = region(fb, ch, x0, y0, x0 + b, y0 + b);
-                const Estimate r{ref["mean"][i][ch].get<double>(), std::pow(ref["stderr"][i][ch].get<double>(), 2)};
-                worst.block = std::max(worst.block, std::abs(z_two({gain * g.mean, gain * gain * g.var}, r)));
-                image.mean += g.mean / n_blocks, image.var += g.var / (double(n_blocks) * n_blocks);
-            }
-            const Estimate r{ref["image_mean"][ch].get<double>(), std::pow(ref["image_stderr"][ch].get<double>(), 2)};
-            worst.image = std::max(worst.image, std::abs(z_two({gain * image.mean, gain * gain * image.var}, r)));
-        }
-        return worst;
-    };
+    REQUIRE(sf.scene->camera().width() == ref.width);
+    REQUIRE(sf.scene->camera().height() == ref.height);
+    const int n_blocks = ref.blocks;
+    const auto compare = [&](const FrameBuffer& fb, double gain) { return test::compare_with_cycles(fb, ref, gain); };
     const FrameBuffer fb = render(*sf.scene, c.spp, 7);
-    const Worst as_rendered = compare(fb, 1.0);
+    const test::CyclesWorst as_rendered = compare(fb, 1.0);
     CAPTURE(as_rendered.block, as_rendered.image);
     CHECK(as_rendered.block < z_threshold(n_blocks * 3));
     CHECK(as_rendered.image < z_threshold(3));
