@@ -3,7 +3,9 @@
 // per-pixel sample streams, time budgets, resume, NaN accounting and variance
 // layers; it only says what one sample computes. Registered by name in
 // gdr::integrator_registry(), it is then rendered through the same code path
-// as `gdr render --integrator ao`, and the image it writes is checked.
+// as `gdr render --integrator ao`, and the image it writes is checked. That
+// step calls the tool's own commands, gdr::cli::run, so the example links the
+// tool's command library (gdr_cli_lib, in gdr's build tree) besides gdr::gdr.
 //
 //   custom_integrator SCENE.json OUT.exr [--spp N]
 #include <cmath>

@@ -59,7 +59,9 @@ protected:
         bool active[kPacket], hit[kPacket];
         const PathOptions opt{max_depth_, rr_depth_, nee_};
         static_assert(detail::kLockstepLanes == kPacket);
+#ifdef GDR_SIMD
         const bool lockstep = simd_ && nee_ && scene.any_lambertian() && scene.has_lights();
+#endif
         for (int base = 0; base < n; base += kPacket) {
             const int m = std::min(kPacket, n - base);
             for (int j = 0; j < kPacket; ++j) {
@@ -79,11 +81,14 @@ protected:
             }
             scene.intersect8(ray, active, sip, hit);
             PathResult results[kPacket];
+#ifdef GDR_SIMD
             if (lockstep) {
                 Sampler* samplers[kPacket];
                 for (int j = 0; j < m; ++j) samplers[j] = &jobs[base + j].sampler;
                 detail::trace_lockstep_paths(scene, ray, si, hit, samplers, m, opt, results);
-            } else {
+            } else
+#endif
+            {
                 for (int j = 0; j < m; ++j)
                     results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
             }

@@ -6,6 +6,7 @@
 // the paths that end leaving the lanes. Stage B repeats scatter()'s
 // operations in its order, so images are bit-identical to the scalar kernel
 // (the vectorised select, square root and division round as the scalar ones).
+#ifdef GDR_SIMD  // x86 only (SSE); without it pt always takes the scalar kernel
 #include "pt_lockstep.h"
 
 #include <cstring>
@@ -288,3 +289,4 @@ void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteractio
 }
 
 }  // namespace gdr::detail
+#endif  // GDR_SIMD

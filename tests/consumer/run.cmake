@@ -21,6 +21,12 @@ endfunction()
 
 file(REMOVE_RECURSE "${WORK_DIR}")
 step("install" ${CMAKE_COMMAND} --install "${GDR_BUILD_DIR}" --prefix "${WORK_DIR}/prefix")
+# The package is the library alone: the tool's and the harness's headers stay in the build tree.
+foreach(dir cli eval)
+  if(EXISTS "${WORK_DIR}/prefix/include/gdr/${dir}")
+    message(FATAL_ERROR "consumer test: the install holds include/gdr/${dir}, which is not part of libgdr")
+  endif()
+endforeach()
 step("configure" ${CMAKE_COMMAND} -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" -G "${GENERATOR}"
      "-DCMAKE_CXX_COMPILER=${CXX}" "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}" "-DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix")
 step("build" ${CMAKE_COMMAND} --build "${WORK_DIR}/build")

@@ -3,8 +3,10 @@
 #include <algorithm>
 
 #include <embree3/rtcore.h>
+#ifdef GDR_SIMD
 #include <xmmintrin.h>
 #include <emmintrin.h>
+#endif
 
 #include "gdr/core/error.h"
 
@@ -226,10 +228,14 @@ constexpr float kSegmentEnd = 1.f - 1e-4f;
 // motion blur, all geometry masks, no ids or flags).
 template <class RayN>
 inline void store_fixed_fields(RayN& r, int b) {
+#ifdef GDR_SIMD
     _mm_store_ps(r.time + b, _mm_setzero_ps());
     _mm_store_si128(reinterpret_cast<__m128i*>(r.mask + b), _mm_set1_epi32(-1));
     _mm_store_si128(reinterpret_cast<__m128i*>(r.id + b), _mm_setzero_si128());
     _mm_store_si128(reinterpret_cast<__m128i*>(r.flags + b), _mm_setzero_si128());
+#else
+    for (int i = b; i < b + 4; ++i) r.time[i] = 0.f, r.mask[i] = ~0u, r.id[i] = 0, r.flags[i] = 0;
+#endif
 }
 
 }  // namespace
@@ -250,6 +256,7 @@ void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInterac
     // setup cost more than Embree's own traversal of the packet.
     const float* src = &rays[0].o.x;
     for (int b = 0; b < N; b += 4) {
+#ifdef GDR_SIMD
         __m128 a0 = _mm_loadu_ps(src + 8 * (b + 0)), a1 = _mm_loadu_ps(src + 8 * (b + 1));
         __m128 a2 = _mm_loadu_ps(src + 8 * (b + 2)), a3 = _mm_loadu_ps(src + 8 * (b + 3));
         _MM_TRANSPOSE4_PS(a0, a1, a2, a3);
@@ -265,6 +272,16 @@ void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInterac
         _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.geomID + b), ones);  // RTC_INVALID_GEOMETRY_ID
         _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.primID + b), ones);
         _mm_store_si128(reinterpret_cast<__m128i*>(rh.hit.instID[0] + b), ones);
+#else
+        for (int i = b; i < b + 4; ++i) {
+            const float* row = src + 8 * i;  // o.x o.y o.z d.x d.y d.z tmin tmax
+            rh.ray.org_x[i] = row[0], rh.ray.org_y[i] = row[1], rh.ray.org_z[i] = row[2];
+            rh.ray.dir_x[i] = row[3], rh.ray.dir_y[i] = row[4], rh.ray.dir_z[i] = row[5];
+            rh.ray.tnear[i] = row[6], rh.ray.tfar[i] = row[7];
+            rh.hit.geomID[i] = rh.hit.primID[i] = rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+        }
+        store_fixed_fields(rh.ray, b);
+#endif
         for (int i = b; i < b + 4; ++i) valid[i] = active[i] ? -1 : 0;
     }
     RTCIntersectContext ctx;
@@ -393,6 +410,7 @@ bool Scene::segment_clear(const Vec3& o, const Vec3& v) const {
     return !occluded_rtc(rtc_scene_, o, v, 0.f, kSegmentEnd);
 }
 
+#ifdef GDR_SIMD
 namespace {
 // The four-lane form of offset_ray_origin(p, ng, dir) with dot(ng, dir) = dn,
 // in the same operations and order (so the same bits).
@@ -412,6 +430,7 @@ inline __m128 dot4(const __m128 a[3], const __m128 b[3]) {
 }
 
 }  // namespace
+#endif
 
 // visible8() as a packet of N = 4 or 8 lanes (RTCRayN).
 template <int N, class RayN, class OccludedN>
@@ -422,6 +441,7 @@ void Scene::visible_packet(const VisibilityBatch& q, bool* out, OccludedN occlud
     const int n = q.n;
     alignas(32) RayN r;
     alignas(32) int valid[N];
+#ifdef GDR_SIMD
     for (int b = 0; b < N; b += 4) {
         const __m128 used = _mm_castsi128_ps(_mm_cmplt_epi32(_mm_setr_epi32(b, b + 1, b + 2, b + 3), _mm_set1_epi32(n)));
         // Unused lanes are zeroed: uninitialised, they could hold denormals, which are slow.
@@ -444,6 +464,24 @@ void Scene::visible_packet(const VisibilityBatch& q, bool* out, OccludedN occlud
         _mm_store_ps(r.tnear + b, _mm_setzero_ps()), _mm_store_ps(r.tfar + b, _mm_set1_ps(kSegmentEnd));
         store_fixed_fields(r, b);
     }
+#else
+    // The same operations lane by lane: offset_ray_origin() is what the
+    // vector code repeats, so the bits are the same.
+    for (int i = 0; i < N; ++i) {
+        const bool used = i < n;  // unused lanes are zeroed, as above
+        const auto lane = [&](const float (&a)[3][VisibilityBatch::kLanes]) {
+            return used ? Vec3(a[0][i], a[1][i], a[2][i]) : Vec3(0.f);
+        };
+        const Vec3 p0 = lane(q.p0), n0 = lane(q.n0), p1 = lane(q.p1), n1 = lane(q.n1);
+        const Vec3 d = p1 - p0;
+        const Vec3 o = offset_ray_origin(p0, n0, d), v = offset_ray_origin(p1, n1, -d) - o;
+        valid[i] = used && glm::dot(v, v) > 0.f ? -1 : 0;
+        r.org_x[i] = o.x, r.org_y[i] = o.y, r.org_z[i] = o.z;
+        r.dir_x[i] = v.x, r.dir_y[i] = v.y, r.dir_z[i] = v.z;
+        r.tnear[i] = 0.f, r.tfar[i] = kSegmentEnd;
+    }
+    for (int b = 0; b < N; b += 4) store_fixed_fields(r, b);
+#endif
     if (observer_) [[unlikely]]
         for (int i = 0; i < n; ++i)
             if (valid[i])

@@ -1,13 +1,7 @@
 // The gdr command-line tool: render scenes, inspect and compare EXR files,
 // reconstruct gradient-domain renders.
-#include <unistd.h>
-
-#include <atomic>
-#include <chrono>
-#include <csignal>
 #include <cstdio>
-#include <filesystem>
-#include <mutex>
+#include <exception>
 #include <string>
 #include <vector>
 
