@@ -20,7 +20,7 @@
 #include "cycles_compare.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/path/connection.h"
 #include "gdr/scene/warp.h"

@@ -7,7 +7,7 @@
 
 #include "gdr/integrators/gpt.h"
 #include "gdr/integrators/integrator.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/path/trace.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/shift/steps.h"

@@ -25,7 +25,7 @@
 
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/io/scene_file.h"

@@ -11,7 +11,7 @@
 #include <cstdio>
 #include <string>
 
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/scene_file.h"

@@ -7,7 +7,7 @@
 #include <tuple>
 
 #include "gdr/integrators/bdpt.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/connection.h"
 

@@ -8,7 +8,7 @@
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/trace.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -23,7 +23,7 @@ double light_pdf_w(const Scene& scene, const Vec3& from, const SurfaceInteractio
     if (!(pa > 0.f)) return 0.0;
     const Vec3d d = Vec3d(at.p) - Vec3d(from);
     const double dist = glm::length(d);
-    return pdf_a_to_w(pa, dist, glm::dot(Vec3d(at.ng), d / dist));
+    return pdf_a_to_w(double(pa), dist, glm::dot(Vec3d(at.ng), d / dist));
 }
 
 // Inlined: it sits in evaluate_pair's inner loop, and as a call it kept its

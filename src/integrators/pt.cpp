@@ -3,8 +3,8 @@
 #include <tuple>
 
 #include "gdr/core/in_place.h"
-#include "gdr/integrators/common.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/vertex.h"
+#include "gdr/path/dims.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
 #include "pt_lockstep.h"

@@ -15,8 +15,8 @@
 #include <xmmintrin.h>
 
 #include "gdr/core/error.h"
-#include "gdr/integrators/common.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/vertex.h"
+#include "gdr/path/dims.h"
 
 namespace gdr::detail {
 namespace {

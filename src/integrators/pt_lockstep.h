@@ -7,8 +7,9 @@
 #pragma once
 
 #include "gdr/core/sampler.h"
-#include "gdr/integrators/common.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/mis.h"
+#include "gdr/path/vertex.h"
+#include "gdr/path/dims.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/scene/scene.h"
 
@@ -34,7 +35,7 @@ inline void add_emission(const Scene& scene, const SurfaceInteraction& si, const
     float w = 1.f;
     if (opt.nee && !st.prev_delta) {
         const float cos_l = glm::dot(si.ng, wo_world);
-        w = power_heuristic(st.prev_pdf_w, pdf_area_to_solid_angle(scene.light_pdf_a(si.prim), si.t, cos_l));
+        w = power_heuristic(st.prev_pdf_w, pdf_a_to_w(scene.light_pdf_a(si.prim), si.t, cos_l));
     }
     r.radiance += st.beta * le * w;
 }
@@ -79,7 +80,7 @@ inline bool scatter(const Scene& scene, const SurfaceInteraction& si, const Vec3
             if (!is_black(fe.f)) {
                 ++r.rays;
                 if (scene.visible(si.p, si.ng, ls.p, ls.n)) {
-                    const float pdf_l = pdf_area_to_solid_angle(ls.pdf_a, dist, glm::dot(ls.n, -wi_world));
+                    const float pdf_l = pdf_a_to_w(ls.pdf_a, dist, glm::dot(ls.n, -wi_world));
                     const float w = power_heuristic(pdf_l, fe.pdf);
                     r.radiance += st.beta * fe.f * abs_cos_theta(wi) * ls.radiance * (w / pdf_l);
                 }

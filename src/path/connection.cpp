@@ -1,6 +1,6 @@
 #include "gdr/path/connection.h"
 
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 
 namespace gdr {
 

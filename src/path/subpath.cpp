@@ -1,7 +1,7 @@
 #include "gdr/path/subpath.h"
 
-#include "gdr/integrators/common.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/vertex.h"
+#include "gdr/path/dims.h"
 #include "gdr/scene/warp.h"
 
 namespace gdr {

@@ -1,8 +1,8 @@
 #include "gdr/path/trace.h"
 
 #include "gdr/core/in_place.h"
-#include "gdr/integrators/common.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/vertex.h"
+#include "gdr/path/dims.h"
 
 namespace gdr {
 

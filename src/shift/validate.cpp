@@ -7,7 +7,7 @@
 #include <sstream>
 
 #include "gdr/core/sampler.h"
-#include "gdr/integrators/path_dims.h"
+#include "gdr/path/dims.h"
 #include "gdr/path/trace.h"
 #include "gdr/shift/offset_path.h"
 

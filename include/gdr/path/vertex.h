@@ -20,15 +20,22 @@ inline double geometry_term(const Vec3& a, const Vec3& n_a, const Vec3& b, const
 }
 
 /// Solid-angle density (1/sr) -> area density (1/m^2) at a point at distance
-/// `dist` whose surface makes |cos| `cos_at_point` with the incoming direction.
-inline double pdf_w_to_a(double pdf_w, double dist, double cos_at_point) {
-    return dist > 0.0 ? pdf_w * std::abs(cos_at_point) / (dist * dist) : 0.0;
+/// `dist` whose surface makes |cos| `cos_at_point` with the incoming
+/// direction; in float (path tracing) or double (shift arithmetic). The one
+/// conversion between the two measures.
+template <class T>
+T pdf_w_to_a(T pdf_w, T dist, T cos_at_point) {
+    return dist > T(0) ? pdf_w * std::abs(cos_at_point) / (dist * dist) : T(0);
 }
 
 /// Area density (1/m^2) -> solid-angle density (1/sr); the inverse of pdf_w_to_a.
-inline double pdf_a_to_w(double pdf_a, double dist, double cos_at_point) {
-    return std::abs(cos_at_point) > 0.0 ? pdf_a * dist * dist / std::abs(cos_at_point) : 0.0;
+template <class T>
+T pdf_a_to_w(T pdf_a, T dist, T cos_at_point) {
+    return std::abs(cos_at_point) > T(0) ? pdf_a * dist * dist / std::abs(cos_at_point) : T(0);
 }
+
+/// Russian roulette survival probability for a path throughput (unitless).
+inline float roulette_survival(const Color& throughput) { return std::min(0.95f, max_component(throughput)); }
 
 /// A next-event (light) sample taken at a path vertex.
 struct LightConnection {
@@ -63,7 +70,7 @@ struct LightConnection {
         }
         const Vec3 w = d / dist;
         wi = at.frame.to_local(w);
-        pdf_w = pdf_a_to_w(light.pdf_a, dist, glm::dot(light.n, w));
+        pdf_w = pdf_a_to_w(double(light.pdf_a), double(dist), double(glm::dot(light.n, w)));
         const BsdfEval fe = at.material->bsdf->eval_pdf(wo, wi, at.uv);
         f = fe.f, pdf_bsdf = fe.pdf;
     }
