@@ -15,6 +15,7 @@
 
 #include <fmt/core.h>
 #include <tbb/global_control.h>
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -240,7 +241,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     double* splat_sum2 = splatting ? buffers_->splat_sum2->data : nullptr;
     if (splatting)
         arena.execute([&] {
-            tbb::parallel_for(size_t(0), splat_values, size_t(1) << 16, [&](size_t i) { splat_sum[i] = splat_sum2[i] = 0.0; });
+            tbb::parallel_for(tbb::blocked_range<size_t>(0, splat_values, size_t(1) << 16), [&](const auto& r) {
+                std::fill(splat_sum + r.begin(), splat_sum + r.end(), 0.0);
+                std::fill(splat_sum2 + r.begin(), splat_sum2 + r.end(), 0.0);
+            });
         });
     // Runs samples [first, first + count) of every pixel. With `abandonable`,
     // a tile not yet started once a cancel or abort is seen is skipped, and
