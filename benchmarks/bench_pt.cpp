@@ -15,8 +15,8 @@
 //
 //   bench_pt [--spp N] [--repeats R] [--threads T] [--set key=value]... [SCENE.json ...]
 //
-// --set passes a parameter to the integrator (e.g. simd=false, to time pt's
-// scalar kernel).
+// --set passes a parameter to the integrator (e.g. nee=false, to time BSDF
+// sampling alone).
 //
 // Without scenes it runs scenes/cornell-box/scene.json and scenes/veach-mis/scene.json.
 #include <algorithm>

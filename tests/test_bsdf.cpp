@@ -742,23 +742,3 @@ TEST_CASE("bsdf: is_black is claimed only where f is zero for all directions", "
     }
 }
 
-TEST_CASE("bsdf: only an untextured Lambertian reports a constant Lambertian f", "[bsdf]") {
-    // Path tracers shade such surfaces without BSDF calls, from f alone.
-    Color f(-1.f);
-    const Color kd(0.2f, 0.5f, 0.8f);
-    REQUIRE(make_lambertian(make_constant_texture(kd))->constant_lambertian(f));
-    CHECK(f == kd * kInvPi);
-    const Color wo_f = make_lambertian(make_constant_texture(kd))->eval(Vec3(0, 0, 1), Vec3(0.6f, 0, 0.8f), Vec2(0.3f));
-    CHECK(wo_f == f);  // the value eval() returns everywhere
-    Image img(2, 2, 3);
-    for (int y = 0; y < 2; ++y)
-        for (int x = 0; x < 2; ++x)
-            for (int c = 0; c < 3; ++c) img.at(x, y, c) = 0.1f * float(1 + x + 2 * y + c);
-    Color untouched(-1.f);
-    CHECK_FALSE(make_lambertian(make_image_texture(img))->constant_lambertian(untouched));
-    CHECK_FALSE(make_mirror(Color(0.9f))->constant_lambertian(untouched));
-    CHECK_FALSE(make_rough_conductor(Color(0.9f), 0.2f)->constant_lambertian(untouched));
-    CHECK_FALSE(make_plastic(make_constant_texture(kd), Color(0.3f), 0.1f)->constant_lambertian(untouched));
-    CHECK_FALSE(make_dielectric(1.5f)->constant_lambertian(untouched));
-    CHECK(untouched == Color(-1.f));
-}

@@ -277,7 +277,7 @@ TEST_CASE("safety: info aligns its columns and prints numbers as given; list sho
     }
     CHECK(column != std::string::npos);
     CHECK(aligned);
-    CHECK_THAT(stdout_of([] { cli::run({"list"}); }), Contains("simd") && Contains("batch") && Contains("alpha=0.2"));
+    CHECK_THAT(stdout_of([] { cli::run({"list"}); }), Contains("nee") && Contains("batch") && Contains("alpha=0.2"));
     // check-shift says how many of the paths it was given could be shifted.
     CHECK_THAT(stdout_of([] { cli::run({"check-shift", kSmall, "--paths", "50"}); }), Contains("of 50 sampled"));
 }

@@ -360,42 +360,6 @@ TEST_CASE("scene: visible8 agrees with visible on batches of 0 to 8 segments", "
     CHECK(counter.n == expected_rays);  // the observer sees each traced segment once
 }
 
-TEST_CASE("scene: segment_clear with visible()'s offset ends answers as visible()", "[scene]") {
-    // The lockstep path tracer offsets a shadow segment's ends itself and
-    // casts it with segment_clear(): the answer must be visible()'s, bit for
-    // bit (one kernel, one ray). Random Cornell box points to its light and
-    // to each other, and a degenerate segment (an end on itself).
-    SceneFile sf = load_scene_file(GDR_SOURCE_DIR "/scenes/cornell-box/scene.json");
-    const Scene& scene = *sf.scene;
-    Sampler rng(SampleKey{9, 0, 0, 0});
-    const auto surface_point = [&](Vec3& p, Vec3& n) {
-        SurfaceInteraction si;
-        while (!scene.intersect(scene.camera().generate_ray(Vec2(rng.next1d() * 512.f, rng.next1d() * 512.f)), si)) {
-        }
-        p = si.p, n = si.ng;
-    };
-    int blocked = 0, clear = 0;
-    for (int i = 0; i < 3000; ++i) {
-        Vec3 p0, n0, p1, n1;
-        surface_point(p0, n0);
-        if (i % 10 == 0) {
-            p1 = p0, n1 = n0;
-        } else if (i % 2) {
-            const LightSample ls = scene.sample_light(p0, rng.next1d(), rng.next2d());
-            p1 = ls.p, n1 = ls.n;
-        } else {
-            surface_point(p1, n1);
-        }
-        const Vec3 d = p1 - p0;
-        const Vec3 o = offset_ray_origin(p0, n0, d);
-        const bool want = scene.visible(p0, n0, p1, n1);
-        REQUIRE(scene.segment_clear(o, offset_ray_origin(p1, n1, -d) - o) == want);
-        (want ? clear : blocked) += 1;
-    }
-    CHECK(blocked > 300);  // both outcomes occur
-    CHECK(clear > 300);
-}
-
 TEST_CASE("scene file: unphysical material values are errors naming where they came from", "[scene][errors]") {
     namespace fs = std::filesystem;
     const fs::path dir = fs::temp_directory_path() / ("gdr-test-materials-" + std::to_string(getpid()));

@@ -7,7 +7,7 @@
 #include "gdr/path/dims.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
-#include "pt_lockstep.h"
+#include "pt_steps.h"
 
 namespace gdr {
 
@@ -25,12 +25,11 @@ public:
         std::tie(max_depth_, rr_depth_) = depth_params(p, "pt");
         nee_ = p.get_bool("nee", true);
         batch_ = batch_param(p, "pt", kPacket);
-        simd_ = p.get_bool("simd", true);
     }
 
     std::string describe() const override {
         return "max_depth=" + std::to_string(max_depth_) + "\nrr_depth=" + std::to_string(rr_depth_) +
-               "\nnee=" + (nee_ ? "true" : "false") + "\nsimd=" + (simd_ ? "true" : "false") + "\n";
+               "\nnee=" + (nee_ ? "true" : "false") + "\n";
     }
 
 protected:
@@ -58,10 +57,6 @@ protected:
         SurfaceInteraction* const sip[kPacket] = {si, si + 1, si + 2, si + 3, si + 4, si + 5, si + 6, si + 7};
         bool active[kPacket], hit[kPacket];
         const PathOptions opt{max_depth_, rr_depth_, nee_};
-        static_assert(detail::kLockstepLanes == kPacket);
-#ifdef GDR_SIMD
-        const bool lockstep = simd_ && nee_ && scene.any_lambertian() && scene.has_lights();
-#endif
         for (int base = 0; base < n; base += kPacket) {
             const int m = std::min(kPacket, n - base);
             for (int j = 0; j < kPacket; ++j) {
@@ -74,24 +69,15 @@ protected:
                 sampler.set_dimension(dims::kFilm);
                 const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
                 assign_in_place(ray[j], [&] { return scene.camera().generate_ray(film); });
-                // The first vertex's light prefetch, which the kernels
-                // otherwise do a vertex ahead: the packet's traversal hides the load.
+                // The first vertex's light prefetch, which the kernel
+                // otherwise does a vertex ahead: the packet's traversal hides the load.
                 if (nee_ && scene.light_prefetch_pays())
                     scene.prefetch_light(sampler.at(dims::vertex(1) + dims::kLightSelect));
             }
             scene.intersect8(ray, active, sip, hit);
             PathResult results[kPacket];
-#ifdef GDR_SIMD
-            if (lockstep) {
-                Sampler* samplers[kPacket];
-                for (int j = 0; j < m; ++j) samplers[j] = &jobs[base + j].sampler;
-                detail::trace_lockstep_paths(scene, ray, si, hit, samplers, m, opt, results);
-            } else
-#endif
-            {
-                for (int j = 0; j < m; ++j)
-                    results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
-            }
+            for (int j = 0; j < m; ++j)
+                results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
             for (int j = 0; j < m; ++j) {
                 const PathResult& r = results[j];
                 rays += r.rays;
@@ -116,7 +102,6 @@ protected:
 private:
     int max_depth_ = -1, rr_depth_ = 5;
     bool nee_ = true;
-    bool simd_ = true;  // the lockstep kernel where it pays; false: always the scalar one
     int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 
@@ -163,7 +148,7 @@ PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathO
 }
 
 void register_pt(Registry<Integrator>& r) {
-    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee, batch, simd)",
+    r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee, batch)",
           [](const Params& p) { return std::make_unique<PathTracer>(p); });
 }
 

@@ -28,9 +28,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         mat.pure_delta = mat.bsdf->is_pure_delta();
         mat.wo_side_only = mat.bsdf->wo_side_only();
         mat.black = mat.bsdf->is_black();
-        mat.lambertian = mat.bsdf->constant_lambertian(mat.lambertian_f);
     }
-    any_lambertian_ = std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.lambertian; });
     // Inconsistent arrays (a caller building the mesh itself) would be read out of bounds.
     const auto sizes = [&] {
         return " (" + std::to_string(mesh.positions.size()) + " positions, " + std::to_string(mesh.normals.size()) +

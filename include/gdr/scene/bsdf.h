@@ -89,13 +89,6 @@ public:
     /// absorber, e.g. an emitter's Kd 0): a path that reaches it ends there
     /// after its emission, whatever it would sample.
     virtual bool is_black() const { return false; }
-    /// True for Lambertian reflection with one albedo everywhere (no
-    /// texture); sets f to its value kd / pi (1/sr). Path tracers run such
-    /// surfaces through a vectorised kernel that evaluates f itself.
-    virtual bool constant_lambertian(Color& f) const {
-        (void)f;
-        return false;
-    }
 
     /// True if the BSDF has only delta lobes.
     bool is_pure_delta() const { return (flags() & (kDiffuse | kGlossy)) == 0; }

@@ -25,8 +25,6 @@ struct Material {
     bool pure_delta = false;      ///< See min_roughness.
     bool wo_side_only = false;    ///< bsdf->wo_side_only(), likewise.
     bool black = false;           ///< bsdf->is_black(), likewise.
-    bool lambertian = false;      ///< bsdf->constant_lambertian(lambertian_f), likewise.
-    Color lambertian_f{0.f};      ///< f of an untextured Lambertian BSDF (1/sr); see lambertian.
 };
 
 /// A triangle soup ready for the BVH: three corners per triangle.
@@ -137,10 +135,6 @@ public:
     /// True if the straight segment between two surface points is unblocked
     /// (ends offset along their normals to avoid self-hits).
     bool visible(const Vec3& p0, const Vec3& n0, const Vec3& p1, const Vec3& n1) const;
-    /// visible() once its ends are offset: o = offset_ray_origin(p0, n0, p1 -
-    /// p0) and v = offset_ray_origin(p1, n1, p0 - p1) - o (a caller that
-    /// computes the offsets of several segments together, e.g. vectorised).
-    bool segment_clear(const Vec3& o, const Vec3& v) const;
     /// visible() of a batch's segments traced as one Embree packet: out[i]
     /// is visible() of segment i, up to the packet kernel's rounding.
     /// Segments from neighbouring points to shared ends (a base path's four
@@ -173,10 +167,6 @@ public:
     /// table exceed what stays in the first-level cache. With a few emitters
     /// the prefetches only cost instructions.
     bool light_prefetch_pays() const { return light_prefetch_pays_; }
-    /// True if some material is an untextured Lambertian reflector
-    /// (Material::lambertian): a path tracer's vectorised shading of such
-    /// vertices then pays.
-    bool any_lambertian() const { return any_lambertian_; }
 
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
@@ -197,6 +187,9 @@ public:
 
 private:
     void build_lights();
+    // visible() once its ends are offset: o = offset_ray_origin(p0, n0, p1 -
+    // p0) and v = offset_ray_origin(p1, n1, p0 - p1) - o.
+    bool segment_clear(const Vec3& o, const Vec3& v) const;
     // An emitting triangle as sample_light needs it, one cache line.
     struct alignas(64) Emitter {
         Vec3 p0, e1, e2;      // corner and edges
@@ -262,7 +255,6 @@ private:
     std::vector<Frame> flat_frames_;        // per triangle: its face frame, or empty (a big scene)
     std::vector<LightBucket> buckets_;      // the alias table over the emitting triangles, for sample_light()
     bool light_prefetch_pays_ = false;      // see light_prefetch_pays()
-    bool any_lambertian_ = false;           // see any_lambertian()
     std::vector<float> light_pdf_by_material_;  // area pdf of the emitters of each material (0: not an emitter)
     void* rtc_device_ = nullptr;
     void* rtc_scene_ = nullptr;

@@ -47,10 +47,6 @@ public:
     float min_roughness() const override { return 1.f; }
     bool wo_side_only() const override { return true; }
     bool is_black() const override { return constant_ && gdr::is_black(f_const_); }
-    bool constant_lambertian(Color& f) const override {
-        if (constant_) f = f_const_;
-        return constant_;
-    }
 
 private:
     // kd / pi; kept for untextured materials, which are most of them, to save

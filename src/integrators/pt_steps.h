@@ -1,9 +1,6 @@
-// The path tracer's two kernels share their per-vertex steps: the scalar
-// one (trace_path) and the lockstep one, in which up to kLockstepLanes paths
-// advance together a vertex at a time, so that the shading of their
-// untextured Lambertian vertices (BSDF sampling, light connection, MIS,
-// spawning) runs four paths per instruction. Other vertices take the scalar
-// steps inside the lockstep kernel.
+// The path tracer's per-vertex steps: emission with its MIS weight, and the
+// scattering step (auxiliary data, next-event estimation, BSDF sampling,
+// roulette).
 #pragma once
 
 #include "gdr/core/sampler.h"
@@ -102,17 +99,5 @@ inline bool scatter(const Scene& scene, const SurfaceInteraction& si, const Vec3
     return true;
 }
 
-
-/// Paths one call of trace_lockstep_paths() advances together.
-inline constexpr int kLockstepLanes = 8;
-
-/// trace_path() of camera rays rays[0..m) (m <= kLockstepLanes) whose first
-/// hits are known: hit[i] says whether ray i hit, and si[i] is then its hit
-/// record (si must hold kLockstepLanes records; the kernel reuses them). Path
-/// i draws its numbers from *samplers[i] and its result goes to results[i].
-/// Requires opt.nee and scene.has_lights(); the results are bit-identical to
-/// trace_path()'s.
-void trace_lockstep_paths(const Scene& scene, const Ray* rays, SurfaceInteraction* si, const bool* hit,
-                          Sampler* const* samplers, int m, const PathOptions& opt, PathResult* results);
 
 }  // namespace gdr::detail
