@@ -181,7 +181,7 @@ TEST_CASE("mis: the weights of a path's strategies sum to one", "[bdpt][mis]") {
                 double sum = 0.0, sum_without_lt = 0.0;
                 for (int t = 1; t <= n; ++t) {
                     if (!strategy_possible(d, t)) continue;
-                    const double w = strategy_weight(h, d, t);
+                    const double w = strategy_weight({h, -1}, d, t);
                     REQUIRE(w >= 0.0);
                     REQUIRE(w <= 1.0 + 1e-12);
                     sum += w;
@@ -220,7 +220,7 @@ TEST_CASE("connections: the densities of a joined path are the full path's, vert
                 for (int s = 0; s <= light.size(); ++s) {
                     if (s == 1 || s + t < 2 || s + t > 9 || (s == 0 && t == 1)) continue;
                     uint64_t rays = 0;
-                    const ConnectionResult c = connect(*scene, light, camera, {s, t}, sampler, MisHeuristic::Power, true, rays);
+                    const ConnectionResult c = connect(*scene, light, camera, {s, t}, sampler, {MisHeuristic::Power, -1}, true, rays);
                     if (is_black(c.value)) continue;
                     PathDensities d;
                     connection_densities(*scene, light, camera, {s, t}, s > 0 ? &light.v[s - 1] : nullptr, d);
@@ -257,7 +257,7 @@ TEST_CASE("connections: the densities of a joined path are the full path's, vert
                     }
                     double sum = 0.0;
                     for (int u = 1; u <= n; ++u)
-                        if (strategy_possible(d, u)) sum += strategy_weight(MisHeuristic::Balance, d, u);
+                        if (strategy_possible(d, u)) sum += strategy_weight({MisHeuristic::Balance, -1}, d, u);
                     REQUIRE(sum == Approx(1.0).epsilon(1e-9));
                     ++checked;
                 }
@@ -456,4 +456,42 @@ TEST_CASE("bdpt: a render's splats start from zero, also in buffers kept from th
         const auto &a = first.get("color").values(), &b = fb->get("color").values();
         CHECK(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
     }
+}
+
+TEST_CASE("connections: a path tracer's two-strategy weight is the general weight restricted to s <= 1", "[bdpt][mis]") {
+    // connect() computes the weights of StrategySet max_s 1 from the last
+    // vertex's two densities; they must equal strategy_weight() over the
+    // whole path's densities with the set restricted, for s = 0 and s = 1
+    // (whose light point is sampled again here from the same numbers).
+    const auto scene = small_box("Glossy", 16);
+    Subpath camera;
+    const Subpath no_light;
+    int checked = 0;
+    for (uint32_t i = 0; i < 300; ++i) {
+        const Sampler sampler(SampleKey{5, i % 16, (i / 16) % 16, i});
+        trace_camera_subpath(*scene, Vec2(float(i % 16) + 0.5f, float((i / 16) % 16) + 0.5f), sampler, {8, 5}, camera);
+        for (int t = 2; t <= camera.size(); ++t)
+            for (int s = 0; s <= 1; ++s) {
+                if (s + t < 3) continue;
+                for (MisHeuristic h : {MisHeuristic::Power, MisHeuristic::Balance}) {
+                    uint64_t rays = 0;
+                    const ConnectionResult c = connect(*scene, no_light, camera, {s, t}, sampler, {h, 1}, true, rays);
+                    if (is_black(c.value)) continue;
+                    Vertex light;
+                    if (s == 1) {
+                        const uint32_t b = dims::vertex(t - 1);
+                        const LightSample ls = scene->sample_emitter_point(sampler.at(b + dims::kLightSelect),
+                                                                           sampler.at2(b + dims::kLightPoint));
+                        light.type = VertexType::Light;
+                        light.si.p = ls.p, light.si.ng = ls.n, light.si.prim = ls.prim, light.pdf_fwd = ls.pdf_a;
+                    }
+                    PathDensities d;
+                    connection_densities(*scene, no_light, camera, {s, t}, s == 1 ? &light : nullptr, d);
+                    INFO("sample " << i << " (s, t) = (" << s << ", " << t << ")");
+                    CHECK(c.weight == Approx(strategy_weight({h, 1}, d, t)).epsilon(1e-4));
+                    ++checked;
+                }
+            }
+    }
+    CHECK(checked > 500);
 }

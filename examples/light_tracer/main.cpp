@@ -41,11 +41,11 @@ protected:
             trace_light_subpath(scene, sampler, {max_depth_ > 0 ? max_depth_ - 1 : -1, 5}, light);
             rays += camera.rays + light.rays;
             if (camera.size() == 2) {
-                const Color le = connect(scene, light, camera, {0, 2}, sampler, MisHeuristic::Power, false, rays).value;
+                const Color le = connect(scene, light, camera, {0, 2}, sampler, {}, false, rays).value;
                 out[size_t(j) * stride + 0] = le.r, out[size_t(j) * stride + 1] = le.g, out[size_t(j) * stride + 2] = le.b;
             }
             for (int s = 2; s <= light.size(); ++s) {
-                const ConnectionResult c = connect(scene, light, camera, {s, 1}, sampler, MisHeuristic::Power, false, rays);
+                const ConnectionResult c = connect(scene, light, camera, {s, 1}, sampler, {}, false, rays);
                 if (!is_black(c.value)) jobs[j].splats->add(c.film, c.value);
             }
         }

@@ -95,7 +95,7 @@ protected:
                     if (max_depth_ > 0 && verts - 1 > max_depth_) break;
                     if (!wanted(s, t)) continue;
                     const bool weighted = strategy_ == "all";
-                    const ConnectionResult c = connect(scene, light, camera, {s, t}, job.sampler, heuristic_, weighted, rays);
+                    const ConnectionResult c = connect(scene, light, camera, {s, t}, job.sampler, {heuristic_, -1}, weighted, rays);
                     if (is_black(c.value)) continue;
                     const Color v = weighted ? c.value * float(c.weight) : c.value;
                     if (c.splat) {

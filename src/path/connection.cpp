@@ -1,5 +1,8 @@
 #include "gdr/path/connection.h"
 
+#include <algorithm>
+#include <optional>
+
 #include "gdr/path/dims.h"
 
 namespace gdr {
@@ -9,6 +12,27 @@ namespace {
 // A delta step's zero density stands for a factor common to every strategy
 // that can sample the path at all (Veach 1997, section 10.3.5).
 double remap0(double p) { return p != 0.0 ? p : 1.0; }
+
+// strategy_weight() of (s, t), s <= 1, among the strategies s = 0 and s = 1
+// only: the other strategy's density over this one's is the light's origin
+// density of the path's last vertex over the camera walk's density of it,
+// or the inverse (for s = 1, `light` is the sampled light point and nee_pdf_w
+// the BSDF's density of its direction).
+double unidirectional_weight(const Scene& scene, const Subpath& camera, Connection c, const Vertex* q,
+                             double nee_pdf_w, MisHeuristic h) {
+    if (c.s == 0) {
+        // The alternative, s = 1 at the previous vertex, exists unless that vertex scattered by a delta lobe.
+        const Vertex& end = camera.v[c.t - 1];
+        if (camera.v[c.t - 2].delta) return 1.0;
+        return mis_weight(h, 1.0, {1.0, remap0(pdf_light_origin(scene, end)) / remap0(end.pdf_fwd)});
+    }
+    const Vertex& pt = camera.v[c.t - 1];
+    const Vertex& light = *q;
+    const Vec3 d = light.si.p - pt.si.p;
+    const double d2 = double(glm::dot(d, d));
+    const double fwd = nee_pdf_w * std::abs(double(glm::dot(light.si.ng, d))) / (d2 * std::sqrt(d2));
+    return mis_weight(h, 1.0, {1.0, remap0(fwd) / remap0(light.pdf_fwd)});
+}
 
 }  // namespace
 
@@ -42,16 +66,17 @@ void connection_densities(const Scene& scene, const Subpath& light, const Subpat
     if (q_prev) d.fwd[t + 1] = pdf_area(scene, &pt, *q, *q_prev);
 }
 
-bool strategy_possible(const PathDensities& d, int t) {
+bool strategy_possible(const PathDensities& d, int t, int max_s) {
     const int n = d.size();
-    if (t < 1 || t > n) return false;
+    if (t < 1 || t > n || (max_s >= 0 && n - t > max_s)) return false;
     if (n == 2) return t == 2;
     if (t == n) return true;
     return !d.delta[t - 1] && !d.delta[t];
 }
 
-double strategy_weight(MisHeuristic h, const PathDensities& d, int t) {
+double strategy_weight(const StrategySet& set, const PathDensities& d, int t) {
     const int n = d.size();
+    const int lowest = set.max_s >= 0 ? std::max(1, n - set.max_s) : 1;  // the fewest camera vertices in the set
     // Densities relative to strategy t's own: a strategy t' < t takes z_t' ..
     // z_{t-1} from the light side instead, each vertex's fwd density replaced
     // by its rev one; a strategy t' > t the other way round.
@@ -59,7 +84,7 @@ double strategy_weight(MisHeuristic h, const PathDensities& d, int t) {
     p.clear();
     p.push_back(1.0);
     double r = 1.0;
-    for (int u = t - 1; u >= 1; --u) {
+    for (int u = t - 1; u >= lowest; --u) {
         r *= remap0(d.rev[u]) / remap0(d.fwd[u]);
         if (strategy_possible(d, u)) p.push_back(r);
     }
@@ -68,16 +93,17 @@ double strategy_weight(MisHeuristic h, const PathDensities& d, int t) {
         r *= remap0(d.fwd[u - 1]) / remap0(d.rev[u - 1]);
         if (strategy_possible(d, u)) p.push_back(r);
     }
-    return mis_weight(h, 1.0, p);
+    return mis_weight(set.heuristic, 1.0, p);
 }
 
 ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
-                         const Sampler& camera_sampler, MisHeuristic h, bool want_weight, uint64_t& rays) {
+                         const Sampler& camera_sampler, const StrategySet& set, bool want_weight, uint64_t& rays) {
     ConnectionResult r;
     const int s = c.s, t = c.t;
     const Vertex& pt = camera.v[t - 1];
-    Vertex sampled;  // s = 1: the light point sampled from pt
+    std::optional<Vertex> sampled;  // s = 1: the light point sampled from pt (a record is large: built only then)
     const Vertex* q = nullptr;
+    double nee_pdf_w = 0.0;  // s = 1: pt's BSDF density of the direction to the light point (1/sr)
     if (s == 0) {
         // The camera walk hit an emitter.
         if (pt.type != VertexType::Surface || !pt.si.is_emitter()) return r;
@@ -113,17 +139,22 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         const Vec3 w = d / dist;
         const float cos_light = glm::dot(ls.n, -w);
         if (!(cos_light > 0.f)) return r;
-        const Color f = vertex_f(pt, w, TransportMode::Radiance);
-        if (is_black(f)) return r;
-        r.value = pt.beta * f * ls.radiance * (abs_cos_shading(pt, w) * cos_light / (dist * dist * ls.pdf_a));
+        // Radiance transport: f needs no conversion, and one call gives it
+        // with the density a path tracer's MIS weight needs.
+        const SurfaceInteraction& si = pt.si;
+        const BsdfEval fe = si.material->bsdf->eval_pdf(si.frame.to_local(pt.wo), si.frame.to_local(w), si.uv);
+        if (is_black(fe.f)) return r;
+        nee_pdf_w = fe.pdf;
+        r.value = pt.beta * fe.f * ls.radiance * (abs_cos_shading(pt, w) * cos_light / (dist * dist * ls.pdf_a));
         if (is_black(r.value)) return r;
         ++rays;
         if (!scene.visible(pt.si.p, pt.si.ng, ls.p, ls.n)) return ConnectionResult{};
-        sampled.type = VertexType::Light;
-        sampled.si.p = ls.p, sampled.si.ng = ls.n, sampled.si.frame = Frame(ls.n), sampled.si.prim = ls.prim;
-        sampled.le = ls.radiance;
-        sampled.pdf_fwd = ls.pdf_a;
-        q = &sampled;
+        sampled.emplace();
+        sampled->type = VertexType::Light;
+        sampled->si.p = ls.p, sampled->si.ng = ls.n, sampled->si.frame = Frame(ls.n), sampled->si.prim = ls.prim;
+        sampled->le = ls.radiance;
+        sampled->pdf_fwd = ls.pdf_a;
+        q = &*sampled;
     } else {
         // Two surface vertices joined by a shadow ray.
         q = &light.v[s - 1];
@@ -144,12 +175,16 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
     }
     if (is_black(r.value)) return ConnectionResult{};
     if (want_weight) {
-        if (s + t == 2) {
+        if (s + t == 2 || set.max_s == 0) {
             r.weight = 1.0;
+        } else if (set.max_s == 1) {
+            // A path tracer's two strategies: the weight needs only the
+            // last vertex's two densities, not the whole path's.
+            r.weight = unidirectional_weight(scene, camera, c, q, nee_pdf_w, set.heuristic);
         } else {
             thread_local PathDensities d;
             connection_densities(scene, light, camera, c, q, d);
-            r.weight = strategy_weight(h, d, t);
+            r.weight = strategy_weight(set, d, t);
         }
     }
     return r;

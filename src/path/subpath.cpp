@@ -33,21 +33,27 @@ float shading_correction(const SurfaceInteraction& si, const Vec3& wo, const Vec
 // vertex sampled with solid-angle density pdf_w; `beta` is the throughput
 // the ray carries and `rel` its part after the endpoint (for roulette).
 // Vertex k draws from block(k).
+// `first`, if given, is the hit record of `ray`, already traced (first_hit: it hit).
 template <class Block>
 void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, const Sampler& sampler,
-          const WalkOptions& opt, Block block, Subpath& path) {
+          const WalkOptions& opt, Block block, Subpath& path, const SurfaceInteraction* first = nullptr,
+          bool first_hit = false) {
     for (int k = 1; opt.max_vertices < 0 || k <= opt.max_vertices; ++k) {
-        Vertex v;
+        // The vertex is built in place: a record is a few hundred bytes.
+        Vertex& x = path.v.emplace_back();
         ++path.rays;
-        if (!scene.intersect(ray, v.si)) return;
-        v.type = VertexType::Surface;
-        v.wo = -ray.d;
-        v.beta = beta;
-        Vertex& prev = path.v.back();
-        v.pdf_fwd = to_area(pdf_w, prev, v);
-        path.v.push_back(v);
+        if (k == 1 && first) {
+            x.si = *first;
+        }
+        if (k == 1 && first ? !first_hit : !scene.intersect(ray, x.si)) {
+            path.v.pop_back();
+            return;
+        }
+        x.type = VertexType::Surface;
+        x.wo = -ray.d;
+        x.beta = beta;
+        x.pdf_fwd = to_area(pdf_w, path.v[path.v.size() - 2], x);
         if (opt.max_vertices >= 0 && k == opt.max_vertices) return;
-        Vertex& x = path.v.back();
         const SurfaceInteraction& si = x.si;
         if (si.material->black) return;
         const Bsdf& bsdf = *si.material->bsdf;
@@ -66,8 +72,10 @@ void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, cons
         // (connection.cpp) treats its zero densities as 1 and skips the
         // strategies that would connect there.
         pdf_w = x.delta ? 0.0 : double(bs->pdf);
-        const double pdf_rev_w = x.delta ? 0.0 : double(bsdf.pdf(bs->wi, wo, si.uv));
-        path.v[path.v.size() - 2].pdf_rev = to_area(pdf_rev_w, x, path.v[path.v.size() - 2]);
+        if (opt.reverse_densities) {
+            const double pdf_rev_w = x.delta ? 0.0 : double(bsdf.pdf(bs->wi, wo, si.uv));
+            path.v[path.v.size() - 2].pdf_rev = to_area(pdf_rev_w, x, path.v[path.v.size() - 2]);
+        }
         if (k >= opt.rr_depth) {
             const float q = roulette_survival(rel);
             if (sampler.at(b + dims::kRoulette) >= q) return;
@@ -82,11 +90,15 @@ void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, cons
 
 void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& sampler, const WalkOptions& opt,
                           Subpath& path) {
+    trace_camera_subpath(scene, scene.camera().generate_ray(film), sampler, opt, path);
+}
+
+void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sampler, const WalkOptions& opt,
+                          Subpath& path, const SurfaceInteraction* first, bool first_hit) {
     path.mode = TransportMode::Radiance;
     path.v.clear();
     path.rays = 0;
     const Camera& cam = scene.camera();
-    const Ray ray = cam.generate_ray(film);
     Vertex c;
     c.type = VertexType::Camera;
     c.si.p = ray.o;
@@ -98,7 +110,7 @@ void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& s
     c.pdf_fwd = 1.0;
     path.v.push_back(c);
     walk(scene, ray, Color(1.f), Color(1.f), cam.direction_pdf(ray.d), sampler, opt,
-         [](int k) { return dims::vertex(k); }, path);
+         [](int k) { return dims::vertex(k); }, path, first, first_hit);
 }
 
 void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkOptions& opt, Subpath& path) {

@@ -36,16 +36,26 @@ struct PathDensities {
     void resize(int n) { fwd.assign(n, 0.0), rev.assign(n, 0.0), delta.assign(n, 0); }
 };
 
+/// The strategies an estimator combines, and how.
+struct StrategySet {
+    MisHeuristic heuristic = MisHeuristic::Power;  ///< Heuristic of the MIS weights.
+    /// Most light-subpath vertices of a strategy: -1 any (bidirectional path
+    /// tracing), 1 a path tracer's (emitters hit by the camera walk, s = 0,
+    /// and next-event estimation, s = 1), 0 emitters hit only.
+    int max_s = -1;
+};
+
 /// True if strategy t (camera vertices z_0 .. z_{t-1}) can sample a path of
-/// `d`: its connecting vertices are not delta (for s = 0, the light is not a
-/// delta light, which gdr does not have), and a two-vertex path (the camera
-/// sees the light) has only s = 0, since a pinhole cannot be hit.
-bool strategy_possible(const PathDensities& d, int t);
-/// MIS weight of strategy t for the path of `d` among all its possible
-/// strategies, by heuristic `h` over their full-path densities (Veach 1997,
-/// section 10.2: a strategy's density over another's is a product of
-/// rev / fwd ratios, a zero density of a delta step counting as 1).
-double strategy_weight(MisHeuristic h, const PathDensities& d, int t);
+/// `d` and is in a set with at most `max_s` light vertices (-1: any): its
+/// connecting vertices are not delta (for s = 0, the light is not a delta
+/// light, which gdr does not have), and a two-vertex path (the camera sees
+/// the light) has only s = 0, since a pinhole cannot be hit.
+bool strategy_possible(const PathDensities& d, int t, int max_s = -1);
+/// MIS weight of strategy t for the path of `d` among the possible
+/// strategies of `set`, by its heuristic over their full-path densities
+/// (Veach 1997, section 10.2: a strategy's density over another's is a
+/// product of rev / fwd ratios, a zero density of a delta step counting as 1).
+double strategy_weight(const StrategySet& set, const PathDensities& d, int t);
 
 /// The densities of the path that strategy `c` forms from the two
 /// subpaths: the subpaths' own, with those of the (up to) four vertices
@@ -67,9 +77,10 @@ struct ConnectionResult {
 /// (camera_sampler is the camera subpath's stream, for s = 1's light
 /// numbers): the unweighted estimate (visibility tested), its raster point for
 /// t = 1, and, if asked (a weight is wanted and the value is not 0), its MIS
-/// weight by heuristic `h`. Requires c.t >= 1, c.t <= camera.size(),
-/// c.s <= light.size(), and (s, t) != (1, 1). Adds the shadow rays cast to `rays`.
+/// weight among the strategies of `set`. Requires c.t >= 1, c.t <=
+/// camera.size(), c.s <= light.size() (or c.s = 1, which samples its own
+/// light), and (s, t) != (1, 1). Adds the shadow rays cast to `rays`.
 ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
-                         const Sampler& camera_sampler, MisHeuristic h, bool want_weight, uint64_t& rays);
+                         const Sampler& camera_sampler, const StrategySet& set, bool want_weight, uint64_t& rays);
 
 }  // namespace gdr

@@ -68,6 +68,9 @@ struct WalkOptions {
     /// Vertex index from which Russian roulette may end the walk (roulette
     /// on the throughput relative to the endpoint's, as the path tracer's).
     int rr_depth = 5;
+    /// Record pdf_rev (a BSDF density per vertex): strategies with two or
+    /// more light vertices need it; a path tracer's (StrategySet max_s <= 1) do not.
+    bool reverse_densities = true;
 };
 
 /// Traces the camera subpath through film point `film` (pixel units): v[0]
@@ -75,6 +78,12 @@ struct WalkOptions {
 /// dims::vertex(k) block of `sampler`, as the path tracer does.
 void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& sampler, const WalkOptions& opt,
                           Subpath& path);
+/// trace_camera_subpath() along primary ray `ray` (unit direction) instead
+/// of a film point: the camera vertex sits at ray.o. If `first` is given, it
+/// is the ray's hit record, already traced (e.g. in one Embree packet with
+/// other samples' rays), and `first_hit` says whether the ray hit.
+void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sampler, const WalkOptions& opt,
+                          Subpath& path, const SurfaceInteraction* first = nullptr, bool first_hit = false);
 /// Traces a light subpath: v[0] is a point on an emitter chosen by power and
 /// area with a cosine-distributed direction (numbers from
 /// dims::light_origin()), v[k] its k-th hit (dims::light_vertex(k)). Empty
