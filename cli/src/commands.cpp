@@ -61,7 +61,7 @@ const CommandHelp kCommands[] = {
     {"render",
      "gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
-     "           [--exposure STOPS] -o OUT.exr",
+     "           [--first-sample K] [--continue] [--exposure STOPS] -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
      "  --integrator NAME     pt, gpt, or any registered integrator (gdr list); default: the scene's\n"
@@ -75,6 +75,11 @@ const CommandHelp kCommands[] = {
      "  --resume FILE.exr     continue FILE's sample sequence towards its target (or a new --spp/--time\n"
      "                        total), with its integrator and parameters; refused for another scene,\n"
      "                        integrator, parameter or resolution\n"
+     "  --first-sample K      start at sample K of the seed's sequence (default 0): parts of one seed with\n"
+     "                        consecutive samples merge into one render of all of them\n"
+     "  --continue            if OUT exists, continue it in place (it must hold this seed's samples from\n"
+     "                        the first sample); if it holds all --spp, do nothing. For parts that a\n"
+     "                        scheduler may stop and run again\n"
      "  --exposure STOPS      exposure of the PNG preview\n"
      "  -o OUT.exr            the output; never one of the inputs\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
