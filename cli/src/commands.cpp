@@ -84,11 +84,12 @@ const CommandHelp kCommands[] = {
      "  -o OUT.exr            the output; never one of the inputs\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
      "143); a second Ctrl-C stops at once."},
-    {"merge", "gdr merge A.exr B.exr [...] -o OUT.exr",
+    {"merge", "gdr merge A.exr B.exr [...] [--complete] -o OUT.exr",
      "Pools renders of one scene with one integrator and its parameters (parts rendered with different\n"
      "seeds, or continuations of one seed) into the image of all their samples. Renders that hold the\n"
      "same samples, or differ in scene, integrator, parameter or resolution, are refused. A merged\n"
-     "file can be merged again."},
+     "file can be merged again.\n"
+     "  --complete   refuse renders short of the samples they were asked for (stopped early)"},
     {"info", "gdr info FILE.exr", "Prints the layers of an EXR, their means, and the settings stored in its header."},
     {"reconstruct", "gdr reconstruct IN.exr|NAME-primal.exr [--method NAME] [--alpha A] [--set key=value]... -o OUT.exr",
      "Reconstructs an image from a gradient-domain render's primal and gradients (gdr's layers, or the\n"
