@@ -9,9 +9,10 @@
 #   3. one task killed mid-render (scancel: SIGTERM) leaves a partial part and
 #      no merge; gdr submit --resume renders only that part on and merges, and
 #      the image equals the uninterrupted one to within float rounding.
-# The test stops only the daemons it started, by their pids, and removes its
-# folder, also on failure. Exit status 77 (ctest: skipped) when Slurm or munge
-# is not installed, or when not run as root (slurmd runs jobs as their user).
+# The cluster is scripts/local-slurm.sh's; the test stops only the daemons it
+# started, by their pids, and removes its folder, also on failure. Exit status
+# 77 (ctest: skipped) when Slurm or munge is not installed, or when not run as
+# root (slurmd runs jobs as their user).
 #   tests/slurm.sh GDR_BINARY SCENE.json
 set -u
 gdr=$1 scene=$2
@@ -20,35 +21,15 @@ spp=8000  # per part: seconds on one thread, so that a task can be stopped mid-r
 tolerance=1e-5  # a resumed part against an uninterrupted one: float rounding of the merges (measured about 1.4e-7)
 
 skip() { echo "SKIPPED: $*"; exit 77; }
-for p in munged mungekey slurmctld slurmd sbatch squeue scancel sinfo; do
-    command -v "$p" > /dev/null || skip "$p not found (Debian packages slurm-wlm and munge; scripts/install-deps.sh installs them)"
-done
+source "$(dirname "${BASH_SOURCE[0]}")/../scripts/local-slurm.sh"
+missing=$(local_slurm_missing)
+[ -z "$missing" ] || skip "$missing not found (Debian packages slurm-wlm and munge; scripts/install-deps.sh installs them)"
 [ "$(id -u)" = 0 ] || skip "needs root to run slurmd"
 
 work=$(mktemp -d /tmp/gdr-slurm.XXXXXX)
-chmod 755 "$work"  # munged wants the path to its socket searchable by all
 out="$work/out dir"
-mkdir -p "$out" "$work/munge" "$work/run" "$work/state" "$work/spool" "$work/log"
-chmod 700 "$work/munge"
-pids=()
 passed=0
-
-stop_all() {
-    # Jobs first (only this cluster's: SLURM_CONF is ours), so that no task outlives its slurmd.
-    if [ -n "${SLURM_CONF:-}" ] && [ ${#pids[@]} -ge 3 ]; then
-        scancel --user="$(id -un)" 2>/dev/null
-        for _ in $(seq 40); do [ -z "$(squeue -h -o %i 2>/dev/null)" ] && break; sleep 0.25; done
-    fi
-    local i
-    for ((i = ${#pids[@]} - 1; i >= 0; i--)); do kill -TERM "${pids[i]}" 2>/dev/null; done
-    for pid in "${pids[@]}"; do
-        for _ in $(seq 40); do kill -0 "$pid" 2>/dev/null || break; sleep 0.25; done
-        kill -KILL "$pid" 2>/dev/null
-        wait "$pid" 2>/dev/null
-    done
-    rm -rf "$work"
-}
-trap stop_all EXIT
+trap 'local_slurm_stop "$work"' EXIT
 fail() {
     echo "FAIL: $*"
     for f in "$work"/log/*.log "$out"/*.parts/logs/*.log; do
@@ -58,66 +39,10 @@ fail() {
 }
 pass() { echo "ok: $*"; passed=$((passed + 1)); }
 
-# A free TCP port on localhost from $1 upwards.
-free_port() {
-    local p=$1
-    while (exec 3<>"/dev/tcp/127.0.0.1/$p") 2>/dev/null; do p=$((p + 1)); done
-    echo "$p"
-}
-
-# --- the cluster
-mungekey --create --keyfile="$work/munge/munge.key" > /dev/null || fail "mungekey could not create a key"
-munged --foreground --key-file="$work/munge/munge.key" --socket="$work/run/munge.socket" \
-    --pid-file="$work/run/munged.pid" --seed-file="$work/munge/seed" --log-file="$work/log/munged.log" \
-    > "$work/log/munged.out" 2>&1 &
-pids+=($!)
-for _ in $(seq 100); do [ -S "$work/run/munge.socket" ] && break; sleep 0.1; done
-[ -S "$work/run/munge.socket" ] || fail "munged did not start: $(cat "$work/log/munged.out")"
-
-host=$(hostname -s)
-ctld_port=$(free_port $((20000 + RANDOM % 20000)))
-slurmd_port=$(free_port $((ctld_port + 1)))
-node=$(slurmd -C | head -n 1)  # NodeName=host CPUs=... as this machine has them
-export SLURM_CONF="$work/slurm.conf"
-cat > "$SLURM_CONF" <<EOF
-ClusterName=gdrtest
-SlurmctldHost=$host(127.0.0.1)
-SlurmctldPort=$ctld_port
-SlurmdPort=$slurmd_port
-SlurmUser=root
-SlurmdUser=root
-AuthType=auth/munge
-CredType=cred/munge
-AuthInfo=socket=$work/run/munge.socket
-StateSaveLocation=$work/state
-SlurmdSpoolDir=$work/spool
-SlurmctldPidFile=$work/run/slurmctld.pid
-SlurmdPidFile=$work/run/slurmd.pid
-SlurmctldLogFile=$work/log/slurmctld.log
-SlurmdLogFile=$work/log/slurmd.log
-ProctrackType=proctrack/linuxproc
-TaskPlugin=task/none
-JobAcctGatherType=jobacct_gather/none
-AccountingStorageType=accounting_storage/none
-JobCompType=jobcomp/none
-MpiDefault=none
-MailProg=/bin/true
-SelectType=select/cons_tres
-SelectTypeParameters=CR_CPU
-ReturnToService=2
-KillWait=30
-MinJobAge=300
-$node NodeAddr=127.0.0.1 State=UNKNOWN
-PartitionName=test Nodes=$host Default=YES MaxTime=INFINITE State=UP
-EOF
-slurmctld -D -f "$SLURM_CONF" > "$work/log/slurmctld.out" 2>&1 &
-pids+=($!)
-for _ in $(seq 100); do sinfo -h > /dev/null 2>&1 && break; sleep 0.1; done
-slurmd -D -f "$SLURM_CONF" -N "$host" > "$work/log/slurmd.out" 2>&1 &
-pids+=($!)
-for _ in $(seq 200); do [ "$(sinfo -h -N -o %t 2>/dev/null)" = idle ] && break; sleep 0.1; done
-[ "$(sinfo -h -N -o %t 2>/dev/null)" = idle ] || fail "the node did not come up: $(sinfo -N 2>&1)"
-echo "slurm: node $host up (slurmctld port $ctld_port), daemons ${pids[*]}"
+# --- the cluster: the daemons are this script's children, stopped by the trap
+local_slurm_start "$work" || fail "the local Slurm cluster did not start"
+mkdir -p "$out"
+echo "slurm: node $(hostname -s) up, daemons $(tr '\n' ' ' < "$work/pids")"
 
 # --- helpers
 wait_for_queue() {
