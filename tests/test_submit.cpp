@@ -241,6 +241,8 @@ TEST_CASE("submit: bad submissions are refused before anything is written", "[su
     CHECK_THAT(error_of({"submit", kSmall, "--spp", "4", "--gdr", gdr, "-o", o}), Contains("--parts"));
     CHECK_THAT(error_of({"submit", kSmall, "--parts", "1", "--gdr", gdr, "-o", o}), Contains("--parts"));
     CHECK_THAT(error_of({"submit", kSmall, "--parts", "2", "--time", "5", "--gdr", gdr, "-o", o}), Contains("--spp"));
+    CHECK_THAT(error_of({"submit", kSmall, "--parts", "2", "--frames", "1:10", "--gdr", gdr, "-o", o}),
+               Contains("no animation"));
     CHECK_THAT(error_of({"submit", kSmall, "--parts", "2", "--set", "max_dpth=3", "--gdr", gdr, "-o", o}),
                Contains("max_dpth"));
     CHECK_THAT(error_of({"submit", kSmall, "--parts", "2", "--sbatch", "-p debug", "--gdr", gdr, "-o", o}),

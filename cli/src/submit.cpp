@@ -740,6 +740,9 @@ int submit(const std::vector<std::string>& args) {
         else if (opt == "--time")
             throw ParameterError("submit: --time has no fixed sample count to divide into parts; give --spp N (the "
                                  "parts take consecutive samples of one seed)");
+        else if (opt == "--frames")
+            throw ParameterError("submit: --frames: gdr renders still images only (it has no animation yet), so "
+                                 "there are no frames to render as array tasks; --parts N divides one image's samples");
         else if (opt == "--partition") partition = a.value(opt);
         else if (opt == "--cpus-per-task") cpus = a.int_value(opt, 1, kMaxThreads);
         else if (opt == "--sbatch") {
@@ -916,8 +919,9 @@ int status(const std::vector<std::string>& args) {
     } else if (!queue.squeue && !records.empty()) {
         // Without squeue a part that is not complete may still be running.
     } else if (!stopped.empty() && running + pending == 0) {
-        fmt::print("stopped or failed: parts {}; gdr submit --resume {} resubmits them and the merge\n",
-                   array_ranges(stopped), shell_quote(plan.out));
+        fmt::print("stopped or failed: {} {}; gdr submit --resume {} resubmits {} and the merge\n",
+                   stopped.size() == 1 ? "part" : "parts", array_ranges(stopped), shell_quote(plan.out),
+                   stopped.size() == 1 ? "it" : "them");
     } else if (stopped.empty() && running + pending == 0 && !merge_active && queue.squeue) {
         fmt::print("every part is complete but nothing merges them: gdr submit --resume {} submits the merge\n",
                    shell_quote(plan.out));
