@@ -2,21 +2,64 @@
 # Installs the Debian packages gdr builds against, but only those missing
 # (apt-get update runs once, and only if something is missing). Uses sudo
 # when not root. Shared by scripts/setup.sh and .ci/run.
+#
+# Optional parts: slurm-wlm and munge, for the test of gdr submit on a real
+# Slurm cluster (tests/slurm.sh starts its own daemons; without the packages
+# it is skipped). They are installed without starting any service (a
+# policy-rc.d denies it for the duration of the install) and their services
+# are left disabled, so the machine runs no Slurm or munge daemon afterwards.
+# Failing to install them is reported and stops nothing; GDR_SKIP_OPTIONAL=1
+# leaves them out.
 set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
           libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev)
-missing=()
-for p in "${packages[@]}"; do
+optional=(slurm-wlm munge)
+installed() {
     # Installed means "install ok installed"; a removed package can leave its status entry behind.
-    dpkg -s "$p" 2>/dev/null | grep -q '^Status: install ok installed' || missing+=("$p")
-done
-if ((${#missing[@]} == 0)); then
+    dpkg -s "$1" 2>/dev/null | grep -q '^Status: install ok installed'
+}
+missing=() missing_optional=()
+for p in "${packages[@]}"; do installed "$p" || missing+=("$p"); done
+if [[ ${GDR_SKIP_OPTIONAL:-0} != 1 ]]; then
+    for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
+fi
+if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0)); then
     echo "install-deps: all build dependencies are installed"
     exit 0
 fi
-echo "install-deps: installing ${missing[*]}"
 sudo=()
 [[ $(id -u) -eq 0 ]] || sudo=(sudo)
 export DEBIAN_FRONTEND=noninteractive
 "${sudo[@]}" apt-get update
-"${sudo[@]}" apt-get install -y --no-install-recommends "${missing[@]}" </dev/null
+if ((${#missing[@]} > 0)); then
+    echo "install-deps: installing ${missing[*]}"
+    "${sudo[@]}" apt-get install -y --no-install-recommends "${missing[@]}" </dev/null
+fi
+((${#missing_optional[@]} > 0)) || exit 0
+
+# The optional parts, with services denied: invoke-rc.d and deb-systemd-invoke
+# ask /usr/sbin/policy-rc.d, and exit status 101 means "do not start". An
+# existing policy is put back afterwards.
+policy=/usr/sbin/policy-rc.d
+saved=""
+restore_policy() {
+    if [[ -n $saved ]]; then "${sudo[@]}" mv -f "$saved" "$policy"; else "${sudo[@]}" rm -f "$policy"; fi
+}
+if [[ -e $policy ]]; then
+    saved=$policy.gdr-saved
+    "${sudo[@]}" mv -f "$policy" "$saved"
+fi
+trap restore_policy EXIT
+printf '#!/bin/sh\n# Written by gdr scripts/install-deps.sh while it installs packages: start no service.\nexit 101\n' |
+    "${sudo[@]}" tee "$policy" > /dev/null
+"${sudo[@]}" chmod 755 "$policy"
+echo "install-deps: installing the optional ${missing_optional[*]} (for the Slurm test; no service is started)"
+if "${sudo[@]}" apt-get install -y --no-install-recommends "${missing_optional[@]}" </dev/null; then
+    # Installing enabled their services for the next boot: gdr's test starts its own daemons.
+    # (systemctl disables them, sysv links too, also where systemd is not running.)
+    if command -v systemctl > /dev/null; then
+        "${sudo[@]}" systemctl disable --quiet slurmctld.service slurmd.service munge.service 2>/dev/null || true
+    fi
+else
+    echo "install-deps: warning: could not install ${missing_optional[*]}; the Slurm test will be skipped" >&2
+fi

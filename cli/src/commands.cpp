@@ -1,4 +1,5 @@
 #include "gdr/cli/commands.h"
+#include "gdr/cli/submit.h"
 
 #include <algorithm>
 #include <cerrno>
@@ -61,7 +62,7 @@ const CommandHelp kCommands[] = {
     {"render",
      "gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
-     "           [--exposure STOPS] -o OUT.exr",
+     "           [--first-sample K] [--continue] [--exposure STOPS] -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
      "  --integrator NAME     pt, gpt, or any registered integrator (gdr list); default: the scene's\n"
@@ -75,15 +76,49 @@ const CommandHelp kCommands[] = {
      "  --resume FILE.exr     continue FILE's sample sequence towards its target (or a new --spp/--time\n"
      "                        total), with its integrator and parameters; refused for another scene,\n"
      "                        integrator, parameter or resolution\n"
+     "  --first-sample K      start at sample K of the seed's sequence (default 0): parts of one seed with\n"
+     "                        consecutive samples merge into one render of all of them\n"
+     "  --continue            if OUT exists, continue it in place (it must hold this seed's samples from\n"
+     "                        the first sample); if it holds all --spp, do nothing. For parts that a\n"
+     "                        scheduler may stop and run again\n"
      "  --exposure STOPS      exposure of the PNG preview\n"
      "  -o OUT.exr            the output; never one of the inputs\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
      "143); a second Ctrl-C stops at once."},
-    {"merge", "gdr merge A.exr B.exr [...] -o OUT.exr",
+    {"merge", "gdr merge A.exr B.exr [...] [--complete] -o OUT.exr",
      "Pools renders of one scene with one integrator and its parameters (parts rendered with different\n"
      "seeds, or continuations of one seed) into the image of all their samples. Renders that hold the\n"
      "same samples, or differ in scene, integrator, parameter or resolution, are refused. A merged\n"
-     "file can be merged again."},
+     "file can be merged again.\n"
+     "  --complete   refuse renders short of the samples they were asked for (stopped early)"},
+    {"submit",
+     "gdr submit SCENE.json --parts N [--spp N] [--seed S] [--integrator NAME] [--set key=value]...\n"
+     "           [--width W] [--height H] [--resolution WxH] [--threads N] [--partition NAME]\n"
+     "           [--cpus-per-task N] [--sbatch OPTION]... [--gdr PATH] [--dry-run] -o OUT.exr\n"
+     "gdr submit --resume OUT.exr [--dry-run]",
+     "Renders a scene on a Slurm cluster: an array job whose task i renders part i, and a job that\n"
+     "merges the parts into OUT.exr once every part has succeeded (sbatch --dependency=afterok). Part i\n"
+     "takes samples i*N .. (i+1)*N-1 of one seed, so the merge equals one render of all the samples.\n"
+     "The scripts, part files, logs and job ids go into a folder beside OUT named after it (box.parts/\n"
+     "for box.exr). OUT and that folder must not exist yet. The scene, the gdr binary and the folder\n"
+     "must be reachable at the same paths on the compute nodes.\n"
+     "  --parts N             number of parts (array tasks), at least 2\n"
+     "  --spp N               samples per pixel of each part (default: the scene's): OUT gets N x parts\n"
+     "  --seed, --integrator, --set, --width, --height, --resolution\n"
+     "                        as for gdr render (default: the scene's)\n"
+     "  --threads N           worker threads per part (default: the CPUs Slurm gives the task)\n"
+     "  --partition NAME      Slurm partition of both jobs\n"
+     "  --cpus-per-task N     CPUs per task (and --threads N)\n"
+     "  --sbatch OPTION       another sbatch option for both jobs, --name=value or --flag (repeatable)\n"
+     "  --gdr PATH            the gdr binary the jobs run (default: this one)\n"
+     "  --dry-run             print the scripts and the sbatch commands; write and submit nothing\n"
+     "  --resume OUT.exr      resubmit the parts of OUT that are not complete, and the merge\n"
+     "A task whose part is complete does nothing; a part stopped by SIGTERM (scancel, a time limit) is\n"
+     "continued by the next run of its task. Prints the job ids; gdr status OUT shows the progress."},
+    {"status", "gdr status OUT.exr",
+     "Reports each part of a render submitted with gdr submit: complete, partial (stopped before its\n"
+     "samples were all taken) or missing, from the part files; and its job's state from squeue, and\n"
+     "from sacct once it has ended (where Slurm keeps accounting). Says what to resubmit."},
     {"info", "gdr info FILE.exr", "Prints the layers of an EXR, their means, and the settings stored in its header."},
     {"reconstruct", "gdr reconstruct IN.exr|NAME-primal.exr [--method NAME] [--alpha A] [--set key=value]... -o OUT.exr",
      "Reconstructs an image from a gradient-domain render's primal and gradients (gdr's layers, or the\n"
@@ -177,6 +212,8 @@ int run(const std::vector<std::string>& args) {
     if (cmd == "render") return render(rest);
     if (cmd == "info") return info(rest);
     if (cmd == "merge") return merge(rest);
+    if (cmd == "submit") return submit(rest);
+    if (cmd == "status") return status(rest);
     if (cmd == "list") {
         if (!rest.empty()) throw ParameterError("list: takes no arguments, got '" + rest[0] + "'");
         return list_plugins();

@@ -4,6 +4,8 @@
 // error of an image nobody looks at, so the final image is the default and
 // every choice made is printed before the numbers.
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -109,6 +111,26 @@ std::string match_channels(Side& a, Side& b) {
                    : "dropped the alpha channel of the " + more.role + " to match the " + fewer.role + "'s RGB\n";
 }
 
+/// A line saying how many values differ at all and by how much at most:
+/// "0 of N" is a bit-for-bit match, which the means and errors cannot show.
+std::string differences_line(const Image& img, const Image& ref) {
+    size_t differ = 0;
+    double max_abs = 0.0, max_rel = 0.0, max_ref = 0.0;
+    const auto& a = img.values();
+    const auto& b = ref.values();
+    for (size_t i = 0; i < a.size() && i < b.size(); ++i) {
+        max_ref = std::max(max_ref, std::abs(double(b[i])));
+        if (a[i] == b[i]) continue;
+        ++differ;
+        const double d = std::abs(double(a[i]) - double(b[i]));
+        max_abs = std::max(max_abs, d);
+        if (b[i] != 0.f) max_rel = std::max(max_rel, d / std::abs(double(b[i])));
+    }
+    return fmt::format("differences:   {} of {} values differ; max |x-r| {:.6g} ({:.3g} of max |r|), max |x-r|/|r| "
+                       "{:.6g} (over r != 0)\n",
+                       differ, a.size(), max_abs, max_ref > 0.0 ? max_abs / max_ref : 0.0, max_rel);
+}
+
 }  // namespace
 
 int compare(const std::vector<std::string>& args) {
@@ -159,6 +181,7 @@ int compare(const std::vector<std::string>& args) {
     out += match_sizes(img, ref, factor);
     out += match_channels(img, ref);
     out += compare_report(img.img, ref.img);
+    out += differences_line(img.img, ref.img);
     fmt::print("{}", out);
     return 0;
 }

@@ -28,10 +28,12 @@ int merge(const std::vector<std::string>& args) {
     ArgReader a{args};
     std::vector<std::string> inputs;
     std::string out;
+    bool complete = false;  // --complete: every input must hold all the samples it was asked for
     while (a.more()) {
         const std::string o = a.next();
         if (o == "-h" || o == "--help") return print_usage("merge");
         if (o == "-o" || o == "--output") out = a.value(o);
+        else if (o == "--complete") complete = true;
         else if (!o.empty() && o[0] == '-') throw ParameterError("merge: unknown option '" + o + "'\n" + usage("merge"));
         else inputs.push_back(o);
     }
@@ -42,6 +44,24 @@ int merge(const std::vector<std::string>& args) {
 
     std::vector<StoredRender> parts;
     for (const std::string& f : inputs) parts.push_back(read_stored_render(f));
+    if (complete) {
+        // A part stopped early (a scheduler's SIGTERM, a time limit) would
+        // leave the merged image short of samples without a word.
+        std::string short_parts;
+        for (const StoredRender& p : parts) {
+            const uint64_t reached = (p.ranges.size() == 1 ? p.first_sample : 0) + p.spp;
+            if (p.target_spp > reached)
+                short_parts += fmt::format("\n  {}: {} of its {} spp", p.file, p.spp,
+                                           p.target_spp - (p.ranges.size() == 1 ? p.first_sample : 0));
+            else if (p.target_spp == 0 && p.fb.metadata().count("interrupted") &&
+                     p.fb.metadata().at("interrupted") == "true")
+                short_parts += fmt::format("\n  {}: interrupted after {:.3f} of its {} s", p.file, p.seconds,
+                                           p.time_budget);
+        }
+        if (!short_parts.empty())
+            throw InputError("merge --complete: renders short of their target (finish them with gdr render --resume, "
+                             "or merge without --complete):" + short_parts);
+    }
     const RenderIdentity id0 = identity_of(parts[0]);
     for (size_t i = 1; i < parts.size(); ++i) check_same_render(id0, parts[0].file, identity_of(parts[i]), parts[i].file);
     // Samples of one seed are numbered: two parts holding the same numbers are

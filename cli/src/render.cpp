@@ -12,6 +12,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "render_options.h"
 #include "say.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
@@ -24,12 +25,6 @@
 namespace gdr::cli {
 
 namespace {
-
-// More threads than this is a typing error, not a machine.
-constexpr long long kMaxThreads = 1 << 16;
-
-// Most pixels along one side: more is a typing error, and the EXR reader refuses it.
-constexpr long long kMaxResolution = 1 << 20;
 
 std::atomic<bool> g_interrupted{false};  // first interrupt: stop within about a second
 std::atomic<bool> g_abort{false};        // second interrupt: stop at once
@@ -90,12 +85,9 @@ private:
 
 }  // namespace
 
-namespace {
-
 // True if the --set assignment names a key of the scene rather than of the integrator.
 bool is_scene_key(const std::string& assignment) { return assignment.substr(0, assignment.find('=')) == "fov"; }
 
-// Applies a --set assignment of a scene key (is_scene_key) to the loaded scene.
 void apply_scene_setting(SceneFile& sf, const std::string& assignment) {
     const size_t eq = assignment.find('=');
     const std::string key = assignment.substr(0, eq), value = eq == std::string::npos ? "" : assignment.substr(eq + 1);
@@ -105,15 +97,12 @@ void apply_scene_setting(SceneFile& sf, const std::string& assignment) {
     set_fov(sf, float(fov));
 }
 
-// Parses "WxH" of --resolution.
 std::pair<int, int> parse_resolution(const std::string& v) {
     const size_t x = v.find_first_of("xX");
     if (x == std::string::npos) throw ParameterError("option --resolution expects WIDTHxHEIGHT, got '" + v + "'");
     return {int(ArgReader::parse_int("--resolution", v.substr(0, x), 1, kMaxResolution)),
             int(ArgReader::parse_int("--resolution", v.substr(x + 1), 1, kMaxResolution))};
 }
-
-}  // namespace
 
 int render(const std::vector<std::string>& args) {
     // A closed pipe on stderr (`2>&1 | head -1`) must not kill a render: its
@@ -124,7 +113,8 @@ int render(const std::vector<std::string>& args) {
     } ignore_pipe;
     ArgReader a{args};
     std::string scene_path, out_path, integrator_name, resume_path;
-    long long spp = -1, seed = -1;
+    long long spp = -1, seed = -1, first_sample = -1;
+    bool continue_part = false;  // --continue: render OUT, or continue the OUT already there
     int width = 0, height = 0;
     double time_budget = 0.0, exposure = 0.0;
     int threads = 0;
@@ -141,6 +131,8 @@ int render(const std::vector<std::string>& args) {
             if (!(time_budget > 0.0)) throw ParameterError("option --time must be positive, got '" + v + "'");
         } else if (opt == "--threads") threads = int(a.int_value(opt, 0, kMaxThreads));
         else if (opt == "--seed") seed = a.int_value(opt, 0, std::numeric_limits<long long>::max());
+        else if (opt == "--first-sample") first_sample = a.int_value(opt, 0, std::numeric_limits<long long>::max());
+        else if (opt == "--continue") continue_part = true;
         else if (opt == "--width") width = int(a.int_value(opt, 1, kMaxResolution));
         else if (opt == "--height") height = int(a.int_value(opt, 1, kMaxResolution));
         else if (opt == "--resolution") std::tie(width, height) = parse_resolution(a.value(opt));
@@ -157,8 +149,21 @@ int render(const std::vector<std::string>& args) {
     if (scene_path.empty()) throw ParameterError("render: no scene file given\n" + usage("render"));
     if (out_path.empty()) throw ParameterError("render: no output given (-o OUT.exr)");
     if (spp > 0 && time_budget > 0.0) throw ParameterError("render: give either --spp or --time, not both");
+    if (first_sample >= 0 && !resume_path.empty())
+        throw ParameterError("render: --first-sample starts a sequence at a given sample, --resume continues " +
+                             resume_path + "'s; give one of them");
+    if (continue_part && !resume_path.empty())
+        throw ParameterError("render: --continue resumes OUT itself; it takes no --resume");
+    if (continue_part && time_budget > 0.0)
+        throw ParameterError("render: --continue renders a part of a fixed sample count (--spp), not --time");
     check_output_path(out_path);
-    check_not_an_input(out_path, {scene_path, resume_path});
+    // --continue: an OUT already there is a part of this render to finish in
+    // place (the write goes through a temporary renamed over it, so an
+    // interrupted write keeps the old part).
+    std::error_code exists_ec;
+    const bool in_place = continue_part && std::filesystem::exists(out_path, exists_ec);
+    if (in_place) resume_path = out_path;
+    check_not_an_input(out_path, {scene_path, in_place ? std::string() : resume_path});
 
     // Resuming continues the previous render's sample sequence, so the merged
     // image equals one longer render. Everything about it is checked before
@@ -208,32 +213,54 @@ int render(const std::vector<std::string>& args) {
     RenderSettings st;
     st.threads = threads;
     st.seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
+    st.first_sample = first_sample >= 0 ? first_sample : 0;
     st.cancel = &g_interrupted;
     st.abort = &g_abort;
-    uint64_t target_spp = 0;  // what the file records as asked for
+    // What the file records as asked for: the number one past the last
+    // sample of the sequence (its samples per pixel when it starts at 0).
+    uint64_t target_spp = 0;
     double target_time = 0.0;
     if (resume_path.empty()) {
         st.spp = spp > 0 ? spp : sf.defaults.spp;
+        if (st.first_sample > std::numeric_limits<long long>::max() - st.spp)
+            throw ParameterError(fmt::format("--first-sample {} with {} spp runs past the last sample number",
+                                             st.first_sample, st.spp));
         st.time_budget = time_budget;
         if (time_budget > 0.0) target_time = time_budget;
-        else target_spp = uint64_t(st.spp);
+        else target_spp = uint64_t(st.first_sample + st.spp);
     } else {
         check_same_render(identity_of(previous), resume_path, identity, scene_path);
-        if (seed >= 0 && uint64_t(seed) != previous.seed)
+        if (in_place) {
+            // The part must be the one asked for: the same seed (given or the
+            // scene's) and first sample; otherwise two renders would be mixed.
+            if (st.seed != previous.seed || uint64_t(st.first_sample) != previous.first_sample)
+                throw InputError(fmt::format("{}: holds samples {}-{} of seed {}, not a part starting at sample {} of "
+                                             "seed {}; remove it or render to another file",
+                                             out_path, previous.first_sample, previous.first_sample + previous.spp - 1,
+                                             previous.seed, st.first_sample, st.seed));
+            if (spp < 0) spp = sf.defaults.spp;
+        } else if (seed >= 0 && uint64_t(seed) != previous.seed)
             throw InputError(resume_path + ": rendered with seed " + std::to_string(previous.seed) + ", not " +
                              std::to_string(seed));
         st.seed = previous.seed;
-        st.first_sample = (long long)(previous.first_sample + previous.spp);
+        const uint64_t reached = previous.first_sample + previous.spp;  // the next sample number to take
+        st.first_sample = (long long)reached;
         // --spp and --time give a new total; without them the stored target is finished.
         const auto nothing_left = [&](const std::string& what) {
             say("{}: already holds {}; nothing to render (give --spp N or --time T for a new total)\n", resume_path, what);
         };
+        if (in_place && uint64_t(spp) == previous.spp) {
+            // A part that is complete: a re-run task does nothing.
+            say("{}: already holds its {} spp (samples {}-{} of seed {}); nothing to render\n", out_path, spp,
+                previous.first_sample, reached - 1, previous.seed);
+            return 0;
+        }
         if (spp > 0) {
             if (uint64_t(spp) <= previous.spp)
                 throw ParameterError(fmt::format("--spp {} is the new total, but {} already holds {} spp", spp,
                                                  resume_path, previous.spp));
             st.spp = spp - (long long)previous.spp;
-            target_spp = uint64_t(spp);
+            target_spp = previous.first_sample + uint64_t(spp);
         } else if (time_budget > 0.0) {
             if (time_budget <= previous.seconds)
                 throw ParameterError(fmt::format("--time {} is the new total, but {} already took {:.3f} s", time_budget,
@@ -241,11 +268,11 @@ int render(const std::vector<std::string>& args) {
             st.time_budget = time_budget - previous.seconds;
             target_time = time_budget;
         } else if (previous.target_spp > 0) {
-            if (previous.target_spp <= previous.spp) {
-                nothing_left(fmt::format("its target of {} spp", previous.target_spp));
+            if (previous.target_spp <= reached) {
+                nothing_left(fmt::format("its target of {} spp", previous.target_spp - previous.first_sample));
                 return 0;
             }
-            st.spp = (long long)(previous.target_spp - previous.spp);
+            st.spp = (long long)(previous.target_spp - reached);
             target_spp = previous.target_spp;
         } else if (previous.time_budget > 0.0) {
             if (previous.time_budget <= previous.seconds) {

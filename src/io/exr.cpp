@@ -121,6 +121,20 @@ std::vector<ChannelGroup> group_channels(const std::vector<std::string>& names, 
     return groups;
 }
 
+/// The string attributes of `header` as metadata: "gdr:k" -> k, others as named; the layer order is not metadata.
+std::map<std::string, std::string> header_metadata(const Imf::Header& header) {
+    std::map<std::string, std::string> out;
+    for (auto it = header.begin(); it != header.end(); ++it) {
+        const std::string key = it.name();
+        if (key == kLayerOrderAttr) continue;
+        const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute());
+        if (!s) continue;
+        const bool ours = key.rfind(kMetaPrefix, 0) == 0;
+        out[ours ? key.substr(std::string(kMetaPrefix).size()) : key] = s->value();
+    }
+    return out;
+}
+
 }  // namespace
 
 void write_exr(const std::string& path, const FrameBuffer& fb) {
@@ -230,19 +244,31 @@ FrameBuffer read_exr(const std::string& path) {
         file.setFrameBuffer(slices);
         file.readPixels(dw.min.y, dw.max.y);
 
-        for (auto it = header.begin(); it != header.end(); ++it) {
-            const std::string key = it.name();
-            if (key == kLayerOrderAttr) continue;
-            const auto* s = dynamic_cast<const Imf::StringAttribute*>(&it.attribute());
-            if (!s) continue;
-            const bool ours = key.rfind(kMetaPrefix, 0) == 0;
-            fb.metadata()[ours ? key.substr(std::string(kMetaPrefix).size()) : key] = s->value();
-        }
+        fb.metadata() = header_metadata(header);
         return fb;
     } catch (const InputError&) {
         throw;
     } catch (const std::exception& e) {
         // Iex exceptions derive from std::exception and do not name the file.
+        throw InputError(path + ": cannot read EXR: " + e.what());
+    }
+}
+
+ExrHeader read_exr_header(const std::string& path) {
+    if (!std::filesystem::exists(path)) throw InputError(path + ": EXR file not found");
+    try {
+        // The header alone: Imf::InputFile reads no pixels until asked to.
+        Imf::InputFile file(path.c_str());
+        const Imf::Header& header = file.header();
+        const Imath::Box2i dw = header.dataWindow();
+        ExrHeader out;
+        out.width = dw.max.x - dw.min.x + 1;
+        out.height = dw.max.y - dw.min.y + 1;
+        out.metadata = header_metadata(header);
+        return out;
+    } catch (const InputError&) {
+        throw;
+    } catch (const std::exception& e) {
         throw InputError(path + ": cannot read EXR: " + e.what());
     }
 }

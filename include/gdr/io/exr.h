@@ -2,6 +2,7 @@
 // ("color.R", "dx.G", "depth.Y", ...), metadata as string attributes.
 #pragma once
 
+#include <map>
 #include <string>
 
 #include "gdr/core/image.h"
@@ -17,6 +18,18 @@ void write_exr(const std::string& path, const FrameBuffer& fb);
 /// usual single-image layout) -> layer "color". String attributes become
 /// metadata. Throws InputError naming the file if missing or malformed.
 FrameBuffer read_exr(const std::string& path);
+
+/// Reads only the header of an EXR: its metadata (the string attributes, as
+/// read_exr() gives them) and its size in pixels, without the pixels, for
+/// looking at many renders quickly. Throws InputError naming the file if it is
+/// missing or not an EXR.
+struct ExrHeader {
+    int width = 0;                                ///< Columns (pixels).
+    int height = 0;                               ///< Rows (pixels).
+    std::map<std::string, std::string> metadata;  ///< String attributes, "gdr:" prefix removed.
+};
+/// See ExrHeader.
+ExrHeader read_exr_header(const std::string& path);
 
 /// Reads an EXR holding one RGB image (bare R, G, B channels, or a single
 /// layer); throws InputError naming the file if it holds something else.
