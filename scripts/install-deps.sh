@@ -4,7 +4,7 @@
 # when not root. Shared by scripts/setup.sh and .ci/run.
 set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
-          libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev)
+          libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev)
 missing=()
 for p in "${packages[@]}"; do
     # Installed means "install ok installed"; a removed package can leave its status entry behind.

@@ -59,9 +59,9 @@ struct CommandHelp {
 
 const CommandHelp kCommands[] = {
     {"render",
-     "gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
+     "gdr render SCENE.json|SCENE.xml [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
-     "           [--exposure STOPS] -o OUT.exr",
+     "           [-D name=value]... [--lenient] [--exposure STOPS] -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
      "  --integrator NAME     pt, gpt, or any registered integrator (gdr list); default: the scene's\n"
@@ -75,6 +75,8 @@ const CommandHelp kCommands[] = {
      "  --resume FILE.exr     continue FILE's sample sequence towards its target (or a new --spp/--time\n"
      "                        total), with its integrator and parameters; refused for another scene,\n"
      "                        integrator, parameter or resolution\n"
+     "  -D name=value         a Mitsuba XML scene's $parameter (overrides its <default>)\n"
+     "  --lenient             a Mitsuba XML scene's unsupported elements become warnings and are skipped\n"
      "  --exposure STOPS      exposure of the PNG preview\n"
      "  -o OUT.exr            the output; never one of the inputs\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
