@@ -1276,9 +1276,16 @@ void Importer::shape(xml_node n) {
             take(p, "max_smooth_angle");
         }
         finish(p);
+        const std::string file = file_path(n, name);
+        if (const std::string why = detail::not_a_file(file); !why.empty()) {
+            // Published scenes are sometimes shipped without their largest meshes.
+            if (!opt_.lenient) fail(n, file + why + " (--lenient skips the shape with a warning)");
+            warn(n, file + why + "; the shape is skipped (--lenient)");
+            return;
+        }
         const uint32_t mat = material_for(b, radiance, id, n);
-        if (type == "obj") load_obj_shape(n, file_path(n, name), face_normals, flip_uv, xf, flip, mat);
-        else load_ply_shape(n, file_path(n, name), face_normals, xf, flip, mat);
+        if (type == "obj") load_obj_shape(n, file, face_normals, flip_uv, xf, flip, mat);
+        else load_ply_shape(n, file, face_normals, xf, flip, mat);
         return;
     }
     std::vector<Vec3> pos, nrm;
