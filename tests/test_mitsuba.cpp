@@ -479,7 +479,7 @@ TEST_CASE("mitsuba: default and $parameters, -D overrides, include and ref", "[m
 
 // ------------------------------------------------------------------ errors and --lenient
 
-TEST_CASE("mitsuba: unsupported elements are errors naming file, line, element and id; --lenient warns", "[mitsuba][errors]") {
+TEST_CASE("mitsuba: unsupported elements are errors naming file, line, element and id, and warnings with --lenient", "[mitsuba][errors]") {
     Xml x;
     const std::string file = x.dir("scene.xml");
     // The sensor takes lines 1 to 6, so the shape starts on line 7.
