@@ -184,6 +184,10 @@ TEST_CASE("mitsuba: obj and ply shapes load with their normals, uvs and face_nor
     const SceneFile flat = x.load(R"(<shape type="obj"><string name="filename" value="tri.obj"/>
                                        <boolean name="faceNormals" value="true"/></shape>)");
     CHECK(near(flat.scene->mesh().normals[2], Vec3(0, 0, 1)));
+    // Windows path separators are accepted.
+    std::filesystem::create_directories(x.dir("models"));
+    x.write("models/quad.ply", file_bytes(x.dir("quad.ply")));
+    CHECK(x.load(R"(<shape type="ply"><string name="filename" value="models\quad.ply"/></shape>)").scene->mesh().size() == 2);
     const SceneFile p = x.load(R"(<shape type="ply"><string name="filename" value="quad.ply"/></shape>)");
     REQUIRE(p.scene->mesh().size() == 2);
     CHECK(p.scene->mesh().uvs[2] == Vec2(1, 0));  // PLY stores Mitsuba's v (0 at the top): gdr's is 1 - v
@@ -465,6 +469,9 @@ TEST_CASE("mitsuba: default and $parameters, -D overrides, include and ref", "[m
     // An unused -D, an undefined parameter, an unknown id, an id given twice.
     o.defines = {{"levle", "0.5"}};
     CHECK_THROWS_WITH(load_scene_file(x.scene(body, false), o), Catch::Contains("-D levle=0.5") && Catch::Contains("no parameter"));
+    o.defines = {{"unused", "1"}};
+    CHECK_THROWS_WITH(load_scene_file(x.scene("<default name=\"unused\" value=\"0\"/>" + body, false), o),
+                      Catch::Contains("declares $unused but uses it nowhere"));
     CHECK_THAT(x.error(rect(R"(<bsdf type="diffuse"><rgb name="reflectance" value="$nothing"/></bsdf>)")),
                Catch::Contains("$nothing has no value") && Catch::Contains("-D nothing="));
     CHECK_THAT(x.error(own_line(rect(R"(<ref id="nobody"/>)"))), Catch::Contains("no element has id 'nobody'") && Catch::Contains(":7:"));

@@ -365,7 +365,8 @@ private:
         if (it == ids_.end()) fail(ref, "no element has id '" + id + "'");
         return it->second;
     }
-    std::string file_path(xml_node n, const std::string& name) const {
+    std::string file_path(xml_node n, std::string name) const {
+        std::replace(name.begin(), name.end(), '\\', '/');  // scenes written on Windows
         const fs::path f(name);
         if (f.is_absolute()) return f.string();
         const fs::path own = fs::path(doc_of(n).dir) / f;
@@ -405,6 +406,7 @@ private:
     int version_major_ = 3;
     std::map<std::string, std::string> params_;
     std::set<std::string> used_params_;
+    std::set<std::string> declared_;  // parameters with a <default>
     std::map<std::string, xml_node> ids_;
     std::map<const void*, std::shared_ptr<BuiltBsdf>> bsdfs_;
     std::map<const void*, std::shared_ptr<Texture>> textures_;
@@ -459,6 +461,7 @@ void Importer::collect(xml_node scene, int depth, std::vector<xml_node>& out) {
             const std::string name = need_attr(c, "name");
             if (!c.attribute("value")) fail(c, "missing attribute 'value'");
             if (!opt_.defines.count(name) && !params_.count(name)) params_[name] = attr(c, "value");
+            declared_.insert(name);
         } else if (tag == "include") {
             if (depth >= 16) fail(c, "includes nest more than 16 deep (does a file include itself?)");
             const std::string file = file_path(c, need_attr(c, "filename"));
@@ -1390,7 +1393,9 @@ SceneFile Importer::run() {
     }
     for (const auto& [name, value] : opt_.defines)
         if (!used_params_.count(name))
-            throw InputError(path_ + ": -D " + name + "=" + value + ": the scene has no parameter $" + name);
+            throw InputError(path_ + ": -D " + name + "=" + value +
+                             (declared_.count(name) ? ": the scene declares $" + name + " but uses it nowhere"
+                                                    : ": the scene has no parameter $" + name));
     if (!have_sensor_) throw InputError(path_ + ": the scene has no <sensor> (gdr needs a perspective camera)");
     if (mesh_.size() == 0) throw InputError(path_ + ": the scene has no shapes");
 
