@@ -209,6 +209,9 @@ TEST_CASE("mitsuba: diffuse, roughdiffuse and twosided become Lambertian", "[mit
     REQUIRE(bsdf_of(r).constant_lambertian(f));
     CHECK(f.r * kPi == Approx(0.5f));  // Mitsuba's default reflectance
     CHECK(any_warning(r, "rendered as diffuse"));
+    // 0.6's other name of the reflectance.
+    REQUIRE(bsdf_of(x.load(rect(R"(<bsdf type="diffuse"><rgb name="diffuseReflectance" value="0.3"/></bsdf>)"))).constant_lambertian(f));
+    CHECK(f.r * kPi == Approx(0.3f));
     // No BSDF: Mitsuba's default diffuse 0.5.
     REQUIRE(bsdf_of(x.load(rect(""))).constant_lambertian(f));
     CHECK(f.b * kPi == Approx(0.5f));

@@ -756,7 +756,10 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
     };
 
     if (type == "diffuse" || type == "roughdiffuse") {
-        auto kd = get_texture(p, "reflectance", Color(0.5f));
+        // 0.6 also takes the name diffuseReflectance.
+        if (p.named.count("reflectance") && p.named.count("diffuse_reflectance"))
+            fail(n, "give either reflectance or diffuse_reflectance");
+        auto kd = get_texture(p, p.named.count("diffuse_reflectance") ? "diffuse_reflectance" : "reflectance", Color(0.5f));
         if (type == "roughdiffuse") {
             ignore(p, {"alpha", "use_fast_approx"});
             warn(n, "roughdiffuse (Oren-Nayar) is rendered as diffuse (Lambertian) of the same reflectance");
