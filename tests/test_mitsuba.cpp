@@ -19,6 +19,7 @@
 #include "gdr/io/mitsuba_xml.h"
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
+#include "gdr/shift/validate.h"
 
 using namespace gdr;
 using namespace gdr::test;
@@ -330,6 +331,39 @@ TEST_CASE("mitsuba: mask cuts holes where its opacity is below one half", "[mits
     const SceneFile c = x.load(rect(R"(<bsdf type="mask"><float name="opacity" value="0.3"/><bsdf type="diffuse"/></bsdf>)"));
     CHECK(any_warning(c, "threshold"));
     CHECK_FALSE(c.scene->intersect(Ray{Vec3(0.f, 0.f, 1.f), Vec3(0, 0, -1), 0.f, kInf}, *sp[0]));
+}
+
+TEST_CASE("mitsuba: every built-in shift passes the validator through thin glass, plastic and a mask", "[mitsuba][shift]") {
+    // A closed box seen from inside, lit from its ceiling, holding a thin
+    // glass pane, a rough plastic sphere and a checkerboard cut-out: the BSDFs
+    // and the alpha test this importer adds, under every shift.
+    Xml x;
+    const SceneFile sf = load_scene_file(x.write("shifts.xml", R"XML(<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="90"/>
+    <transform name="to_world"><lookat origin="0, 1, 0.97" target="0, 1, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="64"/><integer name="height" value="64"/></film></sensor>
+  <bsdf type="diffuse" id="white"><rgb name="reflectance" value="0.7"/></bsdf>
+  <shape type="cube"><transform name="to_world"><scale value="1"/><translate y="1"/></transform><boolean name="flip_normals" value="true"/><ref id="white"/></shape>
+  <shape type="rectangle"><transform name="to_world"><scale value="0.3"/><rotate x="1" angle="90"/><translate y="1.98"/></transform>
+    <emitter type="area"><rgb name="radiance" value="15"/></emitter></shape>
+  <shape type="rectangle"><transform name="to_world"><scale value="0.5"/><translate x="-0.3" y="0.8" z="0.5"/></transform>
+    <bsdf type="thindielectric"/></shape>
+  <shape type="sphere"><point name="center" x="0.4" y="0.4" z="0"/><float name="radius" value="0.35"/>
+    <bsdf type="roughplastic"><float name="alpha" value="0.05"/><rgb name="diffuse_reflectance" value="0.3, 0.5, 0.2"/></bsdf></shape>
+  <shape type="rectangle"><transform name="to_world"><scale value="0.4"/><translate x="0.3" y="1.2" z="-0.5"/></transform>
+    <bsdf type="mask"><texture name="opacity" type="checkerboard"><float name="color0" value="1"/><float name="color1" value="0"/>
+      <transform name="to_uv"><scale value="3"/></transform></texture><bsdf type="diffuse"/></bsdf></shape>
+</scene>
+)XML"));
+    for (const char* name : {"half-vector", "reconnection", "replay", "replay-reconnect"}) {
+        ValidateOptions opt;
+        opt.paths = 3000;
+        const auto shift = shift_registry().create(name, Params());
+        const ShiftReport rep = validate_shift(*sf.scene, *shift, ShiftConfig{}, opt);
+        INFO(rep.summary());
+        CHECK(rep.passed);
+        CHECK(rep.base_paths > 1000);
+    }
 }
 
 // ------------------------------------------------------------------ textures
