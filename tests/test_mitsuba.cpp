@@ -503,6 +503,8 @@ TEST_CASE("mitsuba: default and $parameters, -D overrides, include and ref", "[m
     REQUIRE(bsdf_of(b).constant_lambertian(f));
     CHECK(f.r * kPi == Approx(0.5f));
     CHECK(b.scene->camera().height() == 8);
+    // Another value makes another scene of the same files: --resume and merge tell them apart by the hash.
+    CHECK(b.content_hash != a.content_hash);
     // An unused -D, an undefined parameter, an unknown id, an id given twice.
     o.defines = {{"levle", "0.5"}};
     CHECK_THROWS_WITH(load_scene_file(x.scene(body, false), o), Catch::Contains("-D levle=0.5") && Catch::Contains("no parameter"));

@@ -10,6 +10,7 @@
 #include <array>
 #include <cctype>
 #include <charconv>
+#include <cstdint>
 #include <cmath>
 #include <deque>
 #include <filesystem>
@@ -1419,6 +1420,14 @@ SceneFile Importer::run() {
     for (std::string& f : inputs_)
         if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
     sf.content_hash = scene_content_hash(path_, sf.inputs);
+    if (!opt_.defines.empty()) {
+        // -D values make another scene of the same files: they are hashed too (FNV-1a 64).
+        std::string key = sf.content_hash;
+        for (const auto& [name, value] : opt_.defines) key += '\0' + name + '=' + value;
+        uint64_t h = 0xcbf29ce484222325ull;
+        for (const unsigned char c : key) h = (h ^ c) * 0x100000001b3ull;
+        sf.content_hash = fmt::format("{:016x}", h);
+    }
     sf.warnings = std::move(warnings_);
     return sf;
 }

@@ -51,7 +51,8 @@ struct SceneFile {
     /// libraries, textures), each once, in the order first read; paths as opened.
     std::vector<std::string> inputs;
     /// scene_content_hash(path, inputs): 16 hex digits that change with any byte
-    /// or name of any input, e.g. to refuse resuming a render of an edited scene.
+    /// or name of any input (and with a Mitsuba scene's -D values), e.g. to
+    /// refuse resuming a render of an edited scene.
     std::string content_hash;
     /// Approximations made and elements skipped while loading (Mitsuba XML),
     /// one line each, naming the file and line; empty for JSON scene files.
