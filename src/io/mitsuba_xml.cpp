@@ -1270,7 +1270,6 @@ void Importer::shape(xml_node n) {
         }
         b = default_bsdf_;
     }
-    const size_t stats_before = stats_.size();
     const auto label = [&](const std::string& what) { return what + " '" + id + "'"; };
     if (type == "obj" || type == "ply") {
         const std::string name = get_string(p, "filename", "");
@@ -1345,7 +1344,6 @@ void Importer::shape(xml_node n) {
     finish(p);
     const uint32_t mat = material_for(b, radiance, id, n);
     add_triangles(pos, std::move(nrm), uv, shape_xf, flip, mat, label(type));
-    (void)stats_before;
 }
 
 void Importer::emitter(xml_node n) {
