@@ -461,6 +461,10 @@ TEST_CASE("mitsuba: the perspective sensor's fov, fov_axis and film", "[mitsuba]
         x.scene(R"(<sensor type="perspective"><film type="hdrfilm"><rfilter type="gaussian"/></film></sensor>)" + rect(""), false));
     CHECK(any_warning(t, "'gaussian' is replaced by gdr's box filter"));
     CHECK(t.scene->camera().width() == 768);  // film defaults
+    // No fov: Mitsuba's 50 mm lens, whose field of view is along the diagonal of 36 x 24 mm film.
+    const float tan_x = std::tan(t.scene->camera().desc().fov_deg * kPi / 360.f);
+    CHECK(tan_x == Approx(std::sqrt(36.f * 36.f + 24.f * 24.f) / 100.f * 768.f / std::sqrt(768.f * 768.f + 576.f * 576.f)));
+    CHECK(t.scene->camera().desc().fov_axis == 'x');
     CHECK_THROWS_WITH(load_scene_file(x.scene(R"(<sensor type="perspective"><string name="fov_axis" value="z"/></sensor>)" + rect(""), false)),
                       Catch::Contains("unknown fov_axis 'z'"));
 }

@@ -950,15 +950,24 @@ void Importer::sensor(xml_node n) {
     Props p = props(n);
     bool fov_given = false;
     float fov = get_float(p, "fov", 45.f, &fov_given);
+    const bool axis_given = p.named.count("fov_axis") != 0;
     std::string axis = get_string(p, "fov_axis", "x");
-    if (const xml_node f = take(p, "focal_length")) {
-        if (fov_given) fail(f, "give either fov or focal_length");
-        expect_tag(f, {"string", "float"});
-        std::string v = need_attr(f, "value");
-        if (v.size() > 2 && v.substr(v.size() - 2) == "mm") v.resize(v.size() - 2);
-        const float mm = float(number(f, v, "focal_length"));
-        if (!(mm > 0.f)) fail(f, "focal_length must be positive");
-        // A 35 mm film (36 x 24 mm): its diagonal's field of view.
+    if (axis != "x" && axis != "y" && axis != "diagonal" && axis != "smaller" && axis != "larger")
+        fail(p.named.at("fov_axis"), "unknown fov_axis '" + axis + "' (expected x, y, diagonal, smaller or larger)");
+    if (axis_given && !fov_given) warn(p.named.at("fov_axis"), "fov_axis applies to fov only, and there is no fov");
+    const xml_node f = take(p, "focal_length");
+    if (f && fov_given) fail(f, "give either fov or focal_length");
+    if (!fov_given) {
+        // A focal length on 35 mm film (36 x 24 mm) gives the diagonal's field
+        // of view; Mitsuba's default is 50 mm.
+        std::string v = "50";
+        if (f) {
+            expect_tag(f, {"string", "float"});
+            v = need_attr(f, "value");
+            if (v.size() > 2 && v.substr(v.size() - 2) == "mm") v.resize(v.size() - 2);
+        }
+        const float mm = float(number(f ? f : n, v, "focal_length"));
+        if (!(mm > 0.f)) fail(f ? f : n, "focal_length must be positive");
         fov = 2.f * std::atan(std::sqrt(36.f * 36.f + 24.f * 24.f) / (2.f * mm)) * 180.f / kPi;
         axis = "diagonal";
     }
