@@ -12,7 +12,7 @@
 # leaves them out.
 set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
-          libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev)
+          libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev)
 optional=(slurm-wlm munge)
 installed() {
     # Installed means "install ok installed"; a removed package can leave its status entry behind.

@@ -60,12 +60,13 @@ struct CommandHelp {
 
 const CommandHelp kCommands[] = {
     {"render",
-     "gdr render SCENE.json [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
+     "gdr render SCENE.json|SCENE.xml [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
-     "           [--first-sample K] [--continue] [--exposure STOPS] -o OUT.exr",
+     "           [-D name=value]... [--lenient] [--first-sample K] [--continue] [--exposure STOPS]\n"
+     "           -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
-     "  --integrator NAME     pt, gpt, or any registered integrator (gdr list); default: the scene's\n"
+     "  --integrator NAME     pt, gpt, bdpt, or any registered integrator (gdr list); default: the scene's\n"
      "  --spp N               samples per pixel (with --resume: the new total)\n"
      "  --time SECONDS        render whole passes until the wall-clock budget is spent (with --resume: the new total)\n"
      "  --threads N           worker threads (0: all cores)\n"
@@ -81,6 +82,8 @@ const CommandHelp kCommands[] = {
      "  --continue            if OUT exists, continue it in place (it must hold this seed's samples from\n"
      "                        the first sample); if it holds all --spp, do nothing. For parts that a\n"
      "                        scheduler may stop and run again\n"
+     "  -D name=value         a Mitsuba XML scene's $parameter (overrides its <default>)\n"
+     "  --lenient             a Mitsuba XML scene's unsupported elements become warnings and are skipped\n"
      "  --exposure STOPS      exposure of the PNG preview\n"
      "  -o OUT.exr            the output; never one of the inputs\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"

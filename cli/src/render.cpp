@@ -119,6 +119,7 @@ int render(const std::vector<std::string>& args) {
     double time_budget = 0.0, exposure = 0.0;
     int threads = 0;
     std::vector<std::string> sets, scene_sets;
+    SceneFileOptions scene_options;
     while (a.more()) {
         const std::string opt = a.next();
         if (opt == "-h" || opt == "--help") return print_usage("render");
@@ -140,7 +141,14 @@ int render(const std::vector<std::string>& args) {
             const std::string v = a.value(opt);
             // Keys of the scene rather than of the integrator.
             (is_scene_key(v) ? scene_sets : sets).push_back(v);
-        } else if (opt == "--resume") resume_path = a.value(opt);
+        } else if (opt == "-D") {
+            // A Mitsuba scene's $parameter, as Mitsuba's own tool takes it.
+            const std::string v = a.value(opt);
+            const size_t eq = v.find('=');
+            if (eq == 0 || eq == std::string::npos) throw ParameterError("option -D expects name=value, got '" + v + "'");
+            scene_options.defines[v.substr(0, eq)] = v.substr(eq + 1);
+        } else if (opt == "--lenient") scene_options.lenient = true;
+        else if (opt == "--resume") resume_path = a.value(opt);
         else if (opt == "--exposure") exposure = a.real_value(opt);
         else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage("render"));
         else if (scene_path.empty()) scene_path = opt;
@@ -179,7 +187,8 @@ int render(const std::vector<std::string>& args) {
     }
 
     const auto t_load = std::chrono::steady_clock::now();
-    SceneFile sf = load_scene_file(scene_path);
+    SceneFile sf = load_scene_file(scene_path, scene_options);
+    for (const std::string& w : sf.warnings) say("warning: {}\n", w);
     for (const std::string& s : scene_sets) apply_scene_setting(sf, s);
     if (width > 0 || height > 0) set_resolution(sf, width, height);
     const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();

@@ -1,5 +1,6 @@
 #include "gdr/io/scene_file.h"
 
+#include <cctype>
 #include <cerrno>
 #include <charconv>
 #include <climits>
@@ -21,6 +22,7 @@
 #include <tiny_obj_loader.h>
 
 #include "gdr/core/error.h"
+#include "gdr/io/mitsuba_xml.h"
 #include "obj_lines.h"
 
 namespace gdr {
@@ -465,7 +467,30 @@ void load_obj(const std::string& path, const Mat4& transform, TriangleMesh& mesh
 
 static SceneFile load_scene_file_impl(const std::string& path);
 
+// Mitsuba XML: by the name, or by a first character no JSON file starts with.
+static bool is_mitsuba_xml(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".xml") return true;
+    std::ifstream in(path, std::ios::binary);
+    char c = 0;
+    while (in.get(c))
+        if (!std::isspace(static_cast<unsigned char>(c))) return c == '<';
+    return false;
+}
+
+SceneFile load_scene_file(const std::string& path, const SceneFileOptions& options) {
+    std::error_code ec;
+    if (!fs::is_directory(path, ec) && is_mitsuba_xml(path)) return load_mitsuba_scene(path, options);
+    if (!options.defines.empty())
+        throw InputError(path + ": -D " + options.defines.begin()->first +
+                         "=...: parameters apply to Mitsuba XML scenes only, not to JSON scene files");
+    return load_scene_file(path);
+}
+
 SceneFile load_scene_file(const std::string& path) {
+    std::error_code ec;
+    if (!fs::is_directory(path, ec) && is_mitsuba_xml(path)) return load_mitsuba_scene(path, {});
     try {
         return load_scene_file_impl(path);
     } catch (const json::exception& e) {

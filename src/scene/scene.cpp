@@ -18,6 +18,20 @@ void embree_error(void* user, RTCError code, const char* msg) {
     auto* last = static_cast<std::string*>(user);
     *last = "Embree error " + std::to_string(int(code)) + ": " + (msg ? msg : "");
 }
+
+// Embree's filter for every hit candidate, of single rays and packets alike,
+// on geometry with alpha cut-outs: a candidate the mask cuts out is rejected,
+// and traversal goes on to the next surface, so every query (closest hit,
+// shadow ray, packet) sees the same holes without the integrators knowing.
+void alpha_filter(const RTCFilterFunctionNArguments* args) {
+    const auto* scene = static_cast<const Scene*>(args->geometryUserPtr);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] != -1) continue;
+        if (scene->cut_out(RTCHitN_primID(args->hit, args->N, i), RTCHitN_u(args->hit, args->N, i),
+                           RTCHitN_v(args->hit, args->N, i)))
+            args->valid[i] = 0;
+    }
+}
 }  // namespace
 
 Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin)
@@ -104,6 +118,11 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         verts[3 * i + 1] = mesh_.positions[i].y;
         verts[3 * i + 2] = mesh_.positions[i].z;
         idx[i] = uint32_t(i);
+    }
+    if (std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.opacity != nullptr; })) {
+        rtcSetGeometryUserData(geom, this);
+        rtcSetGeometryIntersectFilterFunction(geom, alpha_filter);
+        rtcSetGeometryOccludedFilterFunction(geom, alpha_filter);
     }
     rtcCommitGeometry(geom);
     rtcAttachGeometry(scene, geom);
@@ -525,6 +544,22 @@ LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) con
     LightSample ls = sample_emitter_point(u_sel, u);
     if (!(glm::dot(ls.n, ref - ls.p) > 0.f)) ls.radiance = Color(0.f);
     return ls;
+}
+
+bool Scene::cut_out(uint32_t prim, float b1, float b2) const {
+    if (prim >= hit_info_.size()) return false;
+    const uint32_t info = hit_info_[prim];
+    const Material& m = materials_[info & kMaterialMask];
+    if (!m.opacity) return false;
+    // The uv of fill_hit_point().
+    Vec2 uv(0.f);
+    if (info & kHasUv) {
+        const Vec2* t = &mesh_.uvs[3 * prim];
+        uv = (1.f - b1 - b2) * t[0] + b1 * t[1] + b2 * t[2];
+    } else if (mesh_.uvs.empty()) {
+        uv = Vec2(b1, b2);
+    }
+    return luminance(m.opacity->eval(uv)) < 0.5f;
 }
 
 float Scene::light_pdf_a(uint32_t prim) const {

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <cstddef>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -50,11 +51,30 @@ struct SceneFile {
     /// libraries, textures), each once, in the order first read; paths as opened.
     std::vector<std::string> inputs;
     /// scene_content_hash(path, inputs): 16 hex digits that change with any byte
-    /// or name of any input, e.g. to refuse resuming a render of an edited scene.
+    /// or name of any input (and with a Mitsuba scene's -D values), e.g. to
+    /// refuse resuming a render of an edited scene.
     std::string content_hash;
+    /// Approximations made and elements skipped while loading (Mitsuba XML),
+    /// one line each, naming the file and line; empty for JSON scene files.
+    std::vector<std::string> warnings;
 };
 
-/// Loads a JSON scene file; throws InputError naming the file (and key, line)
+/// Options of load_scene_file that only Mitsuba XML scenes take.
+struct SceneFileOptions {
+    /// Values of the scene's $parameters, as Mitsuba's `-D name=value`; they
+    /// override the scene's <default> elements.
+    std::map<std::string, std::string> defines;
+    /// Unsupported elements become one warning each and are skipped (or
+    /// replaced, as the warning says) instead of an error.
+    bool lenient = false;
+};
+
+/// Loads a scene file: Mitsuba XML (a name ending in .xml, or text starting
+/// with '<'; see gdr/io/mitsuba_xml.h) or gdr's JSON. Throws InputError as the
+/// format's loader does, and for `defines` given to a JSON scene.
+SceneFile load_scene_file(const std::string& path, const SceneFileOptions& options);
+
+/// Loads a JSON scene file (or a Mitsuba XML one, as load_scene_file(path, {})); throws InputError naming the file (and key, line)
 /// when it is missing, a directory, malformed, gives a key twice, names unknown
 /// keys or references missing or malformed meshes.
 SceneFile load_scene_file(const std::string& path);

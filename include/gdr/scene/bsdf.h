@@ -120,6 +120,10 @@ std::shared_ptr<Bsdf> make_lambertian(std::shared_ptr<Texture> kd);
 std::shared_ptr<Bsdf> make_mirror(const Color& r);
 /// Smooth dielectric interface with relative IOR eta (inside / outside), Fresnel-weighted reflection and refraction.
 std::shared_ptr<Bsdf> make_dielectric(float eta);
+/// Thin dielectric sheet of IOR eta (inside / outside): delta reflection with
+/// the Fresnel reflectance summed over its internal bounces, and unbent delta
+/// transmission of the rest; two-sided.
+std::shared_ptr<Bsdf> make_thin_dielectric(float eta);
 /// Rough conductor: GGX microfacet reflection, alpha roughness, Schlick Fresnel with normal reflectance f0.
 std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha);
 /// Rough dielectric: GGX microfacet reflection and refraction (Walter et al. 2007).

@@ -18,6 +18,9 @@ struct Material {
     std::string name;             ///< Name from the MTL file.
     std::shared_ptr<Bsdf> bsdf;   ///< Scattering (never null).
     Color emission{0.f};          ///< Emitted radiance, W/(m^2 sr), front side (CCW winding) only.
+    /// Alpha cut-out (Mitsuba's mask): rays pass through the surface where the
+    /// luminance of opacity(uv) is below 1/2; null for an opaque surface.
+    std::shared_ptr<Texture> opacity = nullptr;
     /// bsdf->min_roughness() and bsdf->is_pure_delta(), filled in by the Scene:
     /// shift mappings classify every vertex they visit, and a field read is
     /// cheaper than a virtual call on that path.
@@ -159,6 +162,9 @@ public:
         prefetch(b);
         prefetch(b + 64);
     }
+    /// True if the point of triangle `prim` at barycentrics (b1, b2) is cut
+    /// out by its material's opacity (Material::opacity), so rays pass it.
+    bool cut_out(uint32_t prim, float b1, float b2) const;
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
     /// True if the scene has any emitter.

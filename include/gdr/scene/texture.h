@@ -33,4 +33,38 @@ std::shared_ptr<Texture> load_image_texture(const std::string& path, const Color
 /// An image texture from linear RGB pixels (row 0 = top of the picture).
 std::shared_ptr<Texture> make_image_texture(Image linear_rgb, const Color& scale = Color(1.f));
 
+/// What an image texture does with uv outside [0, 1).
+enum class TextureWrap {
+    Repeat,  ///< Tiles the image (period 1).
+    Mirror,  ///< Tiles it mirrored at every integer (period 2).
+    Clamp,   ///< Repeats the edge texels.
+};
+
+/// How an image texture is read and looked up.
+struct ImageTextureOptions {
+    Color scale{1.f};                        ///< Factor on every texel (unitless).
+    bool srgb = true;                        ///< Decode 8-bit files from sRGB; false takes the stored values as linear.
+    TextureWrap wrap = TextureWrap::Repeat;  ///< Lookups outside [0, 1).
+    bool nearest = false;                    ///< The nearest texel instead of bilinear interpolation.
+};
+
+/// An image texture read with `options`; throws InputError naming the file if
+/// it is missing or unreadable.
+std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options);
+
+/// The opacity of an image as a grey texture (unitless in [0, 1]): its alpha
+/// channel, as stored, where the file has one, else the luminance of its
+/// (decoded) colour, times options.scale. Throws InputError as load_image_texture.
+std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options);
+
+/// A checkerboard of period 1 in (u', v') = (m * (u, v, 1)).xy: c0 where the
+/// fractional parts of u' and v' are both above 1/2 or both at most 1/2, c1
+/// elsewhere (Mitsuba's checkerboard); c0 and c1 are looked up at uv itself.
+std::shared_ptr<Texture> make_checkerboard_texture(std::shared_ptr<Texture> c0, std::shared_ptr<Texture> c1,
+                                                   const glm::mat3& m = glm::mat3(1.f));
+
+/// `inner` looked up at an affine map of uv: eval(uv) = inner->eval((m * (u, v, 1)).xy),
+/// e.g. a texture's scale, offset or rotation in uv. Its mean is inner's.
+std::shared_ptr<Texture> make_uv_transformed_texture(std::shared_ptr<Texture> inner, const glm::mat3& m);
+
 }  // namespace gdr

@@ -1,0 +1,1471 @@
+// Mitsuba XML scenes (0.6 and 3.x) as gdr scenes, through pugixml. The
+// importer walks the scene's top-level elements in order (an <include> is
+// spliced in where it stands, a <default> sets a $parameter unless -D did),
+// builds each plugin from its properties, and reports every property it did
+// not use: nothing is dropped silently. BSDFs and textures are built once per
+// element, so a <ref> shares them. Shapes become triangles of one mesh.
+#include "gdr/io/mitsuba_xml.h"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <charconv>
+#include <cstdint>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include <fmt/core.h>
+#include <glm/gtc/matrix_transform.hpp>
+#include <pugixml.hpp>
+#include <tiny_obj_loader.h>
+
+#include "gdr/core/error.h"
+#include "gdr/io/ply.h"
+#include "gdr/io/png.h"
+#include "gdr/scene/microfacet.h"
+#include "obj_lines.h"
+
+namespace gdr {
+
+namespace {
+
+namespace fs = std::filesystem;
+using pugi::xml_node;
+
+/// Mitsuba's named conductors: normal-incidence reflectance computed from
+/// the RGB complex indices of refraction of its spectral data (as tabulated
+/// for RGB renderers), F0 = ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2).
+struct NamedConductor {
+    const char* name;
+    float r, g, b;
+};
+constexpr NamedConductor kConductors[] = {
+    {"a-C", 0.2794f, 0.1940f, 0.1691f},  {"Ag", 0.9748f, 0.9575f, 0.9063f},   {"Al", 0.9280f, 0.9178f, 0.9189f},
+    {"AlAs", 0.3200f, 0.2783f, 0.1432f}, {"Au", 0.9667f, 0.8022f, 0.3240f},   {"Be", 0.5975f, 0.5206f, 0.5062f},
+    {"Cr", 0.6875f, 0.6491f, 0.6870f},   {"CsI", 0.1325f, 0.0675f, 0.0619f},  {"Cu", 0.9521f, 0.6197f, 0.5106f},
+    {"Cu2O", 0.3144f, 0.2458f, 0.2358f}, {"CuO", 0.2904f, 0.1985f, 0.1814f},  {"d-C", 0.2126f, 0.1579f, 0.1448f},
+    {"Hg", 0.8140f, 0.7702f, 0.7631f},   {"HgTe", 0.4699f, 0.3665f, 0.3507f}, {"Ir", 0.7426f, 0.6802f, 0.6308f},
+    {"K", 0.9539f, 0.9363f, 0.9201f},    {"Li", 0.9248f, 0.8844f, 0.7933f},   {"MgO", 0.1244f, 0.0603f, 0.0526f},
+    {"Mo", 0.6182f, 0.5618f, 0.5409f},   {"Na_palik", 0.9785f, 0.9597f, 0.9315f}, {"Nb", 0.5640f, 0.4894f, 0.4731f},
+    {"Ni_palik", 0.7001f, 0.5942f, 0.4936f}, {"Rh", 0.8243f, 0.7544f, 0.7216f}, {"Se", 0.3794f, 0.2506f, 0.2412f},
+    {"SiC", 0.2711f, 0.1873f, 0.1808f},  {"SnTe", 0.4071f, 0.1083f, 0.0152f}, {"Ta", 0.4564f, 0.3419f, 0.3799f},
+    {"Te", 0.6351f, 0.5781f, 0.5617f},   {"ThF4", 0.0861f, 0.0328f, 0.0264f}, {"TiC", 0.5482f, 0.4397f, 0.4116f},
+    {"TiN", 0.6409f, 0.4523f, 0.1975f},  {"TiO2", 0.3039f, 0.2246f, 0.2380f}, {"VC", 0.5297f, 0.4179f, 0.3798f},
+    {"V_palik", 0.5727f, 0.5107f, 0.5365f}, {"VN", 0.5251f, 0.3926f, 0.3106f}, {"W", 0.5746f, 0.4778f, 0.4330f},
+    {"none", 1.f, 1.f, 1.f},
+};
+
+/// Mitsuba's named indices of refraction of dielectrics.
+struct NamedIor {
+    const char* name;
+    float ior;
+};
+constexpr NamedIor kIors[] = {
+    {"vacuum", 1.0f},          {"helium", 1.00004f},       {"hydrogen", 1.00013f},   {"air", 1.00028f},
+    {"carbon dioxide", 1.00045f}, {"water", 1.3330f},      {"acetone", 1.36f},       {"ethanol", 1.361f},
+    {"carbon tetrachloride", 1.461f}, {"glycerol", 1.4729f}, {"benzene", 1.501f},    {"silicone oil", 1.52045f},
+    {"bromine", 1.661f},       {"water ice", 1.31f},       {"fused quartz", 1.458f}, {"pyrex", 1.470f},
+    {"acrylic glass", 1.49f},  {"polypropylene", 1.49f},   {"bk7", 1.5046f},         {"sodium chloride", 1.544f},
+    {"amber", 1.55f},          {"pet", 1.5750f},           {"diamond", 2.419f},
+};
+
+/// GGX alpha that stands in for the delta coating of Mitsuba's smooth plastic.
+constexpr float kSmoothPlasticAlpha = 0.01f;
+/// Triangulation of spheres (as the shared scenes' converted OBJs) and disks.
+constexpr int kSphereSegments = 64, kSphereRings = 32, kDiskSegments = 64;
+
+/// 0.6's camelCase names in 3.x's snake_case: toWorld -> to_world, intIOR -> int_ior.
+std::string snake_case(const std::string& s) {
+    std::string r;
+    const auto up = [&](size_t i) { return i < s.size() && std::isupper(static_cast<unsigned char>(s[i])); };
+    const auto low = [&](size_t i) {
+        return i < s.size() && (std::islower(static_cast<unsigned char>(s[i])) || std::isdigit(static_cast<unsigned char>(s[i])));
+    };
+    for (size_t i = 0; i < s.size(); ++i) {
+        if (up(i)) {
+            if (i > 0 && (low(i - 1) || (up(i - 1) && low(i + 1)))) r += '_';
+            r += char(std::tolower(static_cast<unsigned char>(s[i])));
+        } else {
+            r += s[i];
+        }
+    }
+    return r;
+}
+
+/// The Fresnel reflectance of a smooth interface, eta = inside / outside,
+/// averaged over the cosine-weighted hemisphere of directions from inside:
+/// the fraction of diffuse light inside a coating that the interface returns.
+float internal_diffuse_fresnel(float eta) {
+    constexpr int n = 1000;
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i) {
+        const float mu = (float(i) + 0.5f) / float(n);
+        sum += double(fresnel_dielectric(mu, 1.f / eta)) * mu;
+    }
+    return float(2.0 * sum / n);
+}
+
+/// The diffuse base of Mitsuba's plastic seen through its coating, at normal
+/// incidence: scale * kd / (1 - fdr * (nonlinear ? kd : 1)) per channel.
+class CoatedDiffuseTexture final : public Texture {
+public:
+    CoatedDiffuseTexture(std::shared_ptr<Texture> kd, float scale, float fdr, bool nonlinear)
+        : kd_(std::move(kd)), scale_(scale), fdr_(fdr), nonlinear_(nonlinear), mean_(map(kd_->mean())) {}
+    Color eval(const Vec2& uv) const override { return map(kd_->eval(uv)); }
+    Color mean() const override { return mean_; }
+    bool is_constant() const override { return kd_->is_constant(); }
+
+private:
+    Color map(const Color& kd) const {
+        Color r;
+        for (int i = 0; i < 3; ++i) r[i] = scale_ * kd[i] / (1.f - fdr_ * (nonlinear_ ? kd[i] : 1.f));
+        return r;
+    }
+    std::shared_ptr<Texture> kd_;
+    float scale_, fdr_;
+    bool nonlinear_;
+    Color mean_;
+};
+
+/// One file of XML: the scene's or an included one.
+struct Doc {
+    std::string file, dir;
+    std::vector<size_t> line_starts;  // byte offset of each line
+    pugi::xml_document xml;
+};
+
+/// A BSDF element as built: its BSDF, the mask that cuts holes in it, and the
+/// material of it once a shape used it.
+struct BuiltBsdf {
+    std::shared_ptr<Bsdf> bsdf;
+    std::shared_ptr<Texture> opacity;
+    std::string name;
+    int material = -1;
+};
+
+/// The children of a plugin element: properties by (snake_case) name, and
+/// unnamed nested objects, with a record of which ones were read.
+struct Props {
+    xml_node owner;
+    std::map<std::string, xml_node> named;
+    std::vector<xml_node> objects;
+    std::set<const void*> used;
+};
+
+class Importer {
+public:
+    Importer(const std::string& path, const SceneFileOptions& options) : path_(path), opt_(options) {}
+
+    SceneFile run();
+
+private:
+    // ---- locations, errors, warnings
+    const Doc& doc_of(xml_node n) const {
+        const xml_node root = n.root();
+        for (const Doc& d : docs_)
+            if (root == d.xml) return d;
+        return docs_.front();
+    }
+    int line_of(xml_node n) const {
+        const Doc& d = doc_of(n);
+        const ptrdiff_t off = n.offset_debug();
+        if (off < 0) return 0;
+        return int(std::upper_bound(d.line_starts.begin(), d.line_starts.end(), size_t(off)) - d.line_starts.begin());
+    }
+    std::string raw(xml_node n, const char* a) const { return n.attribute(a).value(); }
+    // <tag type="t" id="i" name="n">, naming the id (or its absence) of plugin elements.
+    std::string describe(xml_node n) const {
+        std::string s = std::string("<") + n.name();
+        for (const char* a : {"type", "id", "name"})
+            if (n.attribute(a)) s += fmt::format(" {}=\"{}\"", a, raw(n, a));
+        s += ">";
+        if (n.attribute("type") && !n.attribute("id")) s += " (no id)";
+        return s;
+    }
+    std::string where(xml_node n) const {
+        std::string s = fmt::format("{}:{}: {}", doc_of(n).file, line_of(n), describe(n));
+        const xml_node p = n.parent();
+        if (p && p.type() == pugi::node_element && std::string(p.name()) != "scene" &&
+            (n.attribute("name") || !n.attribute("type")))
+            s += " in " + describe(p);
+        return s;
+    }
+    [[noreturn]] void fail(xml_node n, const std::string& msg) const { throw InputError(where(n) + ": " + msg); }
+    void warn(xml_node n, const std::string& msg) { warnings_.push_back(where(n) + ": " + msg); }
+    // An element gdr does not support: an error, or with --lenient one warning
+    // saying what happens instead (the caller then does that).
+    void unsupported(xml_node n, const std::string& msg, const std::string& instead) {
+        if (!opt_.lenient) fail(n, msg + " (--lenient " + instead + " with a warning)");
+        warn(n, msg + "; " + instead + " (--lenient)");
+    }
+
+    // ---- attributes and values
+    std::string attr(xml_node n, const char* a) {
+        const std::string v = raw(n, a);
+        if (v.find('$') == std::string::npos) return v;
+        std::string r;
+        for (size_t i = 0; i < v.size();) {
+            if (v[i] != '$') {
+                r += v[i++];
+                continue;
+            }
+            size_t j = i + 1;
+            while (j < v.size() && (std::isalnum(static_cast<unsigned char>(v[j])) || v[j] == '_')) ++j;
+            if (j == i + 1) {
+                r += v[i++];
+                continue;
+            }
+            const std::string name = v.substr(i + 1, j - i - 1);
+            const auto it = params_.find(name);
+            if (it == params_.end())
+                fail(n, "parameter $" + name + " has no value: give it with -D " + name + "=VALUE or declare <default name=\"" +
+                            name + "\" value=\"...\"/>");
+            used_params_.insert(name);
+            r += it->second;
+            i = j;
+        }
+        return r;
+    }
+    std::string need_attr(xml_node n, const char* a) {
+        if (!n.attribute(a)) fail(n, std::string("missing attribute '") + a + "'");
+        return attr(n, a);
+    }
+    double number(xml_node n, const std::string& text, const std::string& what) const {
+        const char* first = text.data();
+        const char* last = first + text.size();
+        while (first < last && std::isspace(static_cast<unsigned char>(*first))) ++first;
+        while (last > first && std::isspace(static_cast<unsigned char>(last[-1]))) --last;
+        if (first < last && *first == '+') ++first;
+        double v = 0.0;
+        const auto r = std::from_chars(first, last, v);
+        if (first == last || r.ec != std::errc() || r.ptr != last || !std::isfinite(v))
+            fail(n, what + " must be a finite number, got '" + text + "'");
+        return v;
+    }
+    std::vector<double> numbers(xml_node n, const std::string& text, const std::string& what) const {
+        std::vector<double> v;
+        std::string tok;
+        for (size_t i = 0; i <= text.size(); ++i) {
+            const char c = i < text.size() ? text[i] : ' ';
+            if (c == ',' || std::isspace(static_cast<unsigned char>(c))) {
+                if (!tok.empty()) v.push_back(number(n, tok, what)), tok.clear();
+            } else {
+                tok += c;
+            }
+        }
+        return v;
+    }
+    Vec3 xyz(xml_node n, float def) {
+        if (n.attribute("value")) {
+            const auto v = numbers(n, attr(n, "value"), "'value'");
+            if (v.size() == 1) return Vec3(float(v[0]));
+            if (v.size() != 3) fail(n, "'value' must hold 1 or 3 numbers");
+            return Vec3(float(v[0]), float(v[1]), float(v[2]));
+        }
+        Vec3 r(def);
+        for (int k = 0; k < 3; ++k) {
+            const char* a = k == 0 ? "x" : k == 1 ? "y" : "z";
+            if (n.attribute(a)) r[k] = float(number(n, attr(n, a), std::string("'") + a + "'"));
+        }
+        return r;
+    }
+
+    // ---- properties of a plugin element
+    Props props(xml_node owner);
+    xml_node take(Props& p, const std::string& name) {
+        const auto it = p.named.find(name);
+        if (it == p.named.end()) return {};
+        p.used.insert(it->second.internal_object());
+        return it->second;
+    }
+    void ignore(Props& p, std::initializer_list<const char*> names) {
+        for (const char* n : names) take(p, n);
+    }
+    void expect_tag(xml_node n, std::initializer_list<const char*> tags) {
+        for (const char* t : tags)
+            if (std::string(n.name()) == t) return;
+        std::string list;
+        for (const char* t : tags) list += (list.empty() ? "<" : ", <") + std::string(t) + ">";
+        fail(n, "expected " + list);
+    }
+    float get_float(Props& p, const std::string& name, float def, bool* given = nullptr) {
+        const xml_node n = take(p, name);
+        if (given) *given = bool(n);
+        if (!n) return def;
+        expect_tag(n, {"float", "integer"});
+        return float(number(n, need_attr(n, "value"), "'value'"));
+    }
+    long long get_int(Props& p, const std::string& name, long long def, bool* given = nullptr) {
+        const xml_node n = take(p, name);
+        if (given) *given = bool(n);
+        if (!n) return def;
+        expect_tag(n, {"integer"});
+        const std::string v = need_attr(n, "value");
+        long long r = 0;
+        const auto res = std::from_chars(v.data(), v.data() + v.size(), r);
+        if (v.empty() || res.ec != std::errc() || res.ptr != v.data() + v.size())
+            fail(n, "'value' must be an integer, got '" + v + "'");
+        return r;
+    }
+    bool get_bool(Props& p, const std::string& name, bool def) {
+        const xml_node n = take(p, name);
+        if (!n) return def;
+        expect_tag(n, {"boolean"});
+        const std::string v = need_attr(n, "value");
+        if (v == "true" || v == "1") return true;
+        if (v == "false" || v == "0") return false;
+        fail(n, "'value' must be true or false, got '" + v + "'");
+    }
+    std::string get_string(Props& p, const std::string& name, const std::string& def) {
+        const xml_node n = take(p, name);
+        if (!n) return def;
+        expect_tag(n, {"string"});
+        return need_attr(n, "value");
+    }
+    Color colour_of(xml_node n);
+    Color get_colour(Props& p, const std::string& name, const Color& def) {
+        const xml_node n = take(p, name);
+        if (!n) return def;
+        if (std::string(n.name()) == "texture" || std::string(n.name()) == "ref") {
+            unsupported(n, "a texture for '" + name + "' (gdr takes a colour here)",
+                        fmt::format("uses the default ({}, {}, {})", def.r, def.g, def.b));
+            return def;
+        }
+        return colour_of(n);
+    }
+    std::shared_ptr<Texture> get_texture(Props& p, const std::string& name, const Color& def);
+    Vec3 get_point(Props& p, const std::string& name, const Vec3& def) {
+        const xml_node n = take(p, name);
+        if (!n) return def;
+        expect_tag(n, {"point", "vector"});
+        return xyz(n, 0.f);
+    }
+    Mat4 transform_of(xml_node n, bool* nine = nullptr);
+    Mat4 get_transform(Props& p, const std::string& name) {
+        const xml_node n = take(p, name);
+        if (!n) return Mat4(1.f);
+        expect_tag(n, {"transform"});
+        return transform_of(n);
+    }
+    glm::mat3 get_uv_transform(Props& p);
+    // Every property and object of `p` that was not read is unsupported.
+    void finish(Props& p) {
+        for (const auto& [name, n] : p.named)
+            if (!p.used.count(n.internal_object())) unsupported(n, "unsupported property '" + name + "'", "ignores it");
+        for (xml_node n : p.objects)
+            if (!p.used.count(n.internal_object())) unsupported(n, "unsupported nested element", "ignores it");
+    }
+    float ior(Props& p, const std::string& name, float def);
+    xml_node resolve(xml_node ref) {
+        const std::string id = need_attr(ref, "id");
+        const auto it = ids_.find(id);
+        if (it == ids_.end()) fail(ref, "no element has id '" + id + "'");
+        return it->second;
+    }
+    std::string file_path(xml_node n, std::string name) const {
+        std::replace(name.begin(), name.end(), '\\', '/');  // scenes written on Windows
+        const fs::path f(name);
+        if (f.is_absolute()) return f.string();
+        const fs::path own = fs::path(doc_of(n).dir) / f;
+        std::error_code ec;
+        if (fs::exists(own, ec) || docs_.empty()) return own.string();
+        const fs::path root = fs::path(docs_.front().dir) / f;
+        return fs::exists(root, ec) ? root.string() : own.string();
+    }
+
+    // ---- scene elements
+    void load_doc(const std::string& file, xml_node from);
+    void collect(xml_node scene, int depth, std::vector<xml_node>& out);
+    void index_ids(xml_node n);
+    std::shared_ptr<BuiltBsdf> bsdf(xml_node n);
+    std::shared_ptr<BuiltBsdf> build_bsdf(xml_node n);
+    std::shared_ptr<Texture> texture(xml_node n);
+    std::shared_ptr<Texture> build_texture(xml_node n);
+    std::shared_ptr<Texture> opacity_texture(xml_node t);
+    std::shared_ptr<Texture> bitmap(xml_node n, Props& p, bool opacity);
+    Color conductor_f0(Props& p, xml_node n);
+    void sensor(xml_node n);
+    void integrator(xml_node n);
+    void shape(xml_node n);
+    void emitter(xml_node n);
+    uint32_t material_for(const std::shared_ptr<BuiltBsdf>& b, const Color& emission, const std::string& shape_name,
+                          xml_node at);
+    void add_triangles(const std::vector<Vec3>& p, std::vector<Vec3> nrm, const std::vector<Vec2>& uv, const Mat4& xf,
+                       bool flip, uint32_t material, const std::string& file);
+    void load_obj_shape(xml_node n, const std::string& file, bool face_normals, bool flip_uv, const Mat4& xf,
+                        bool flip, uint32_t material);
+    void load_ply_shape(xml_node n, const std::string& file, bool face_normals, const Mat4& xf, bool flip,
+                        uint32_t material);
+
+    std::string path_;
+    const SceneFileOptions& opt_;
+    std::deque<Doc> docs_;
+    int version_major_ = 3;
+    std::map<std::string, std::string> params_;
+    std::set<std::string> used_params_;
+    std::set<std::string> declared_;  // parameters with a <default>
+    std::map<std::string, xml_node> ids_;
+    std::map<const void*, std::shared_ptr<BuiltBsdf>> bsdfs_;
+    std::map<const void*, std::shared_ptr<Texture>> textures_;
+    std::map<const void*, std::shared_ptr<Texture>> opacities_;  // of a <texture> used as a mask's opacity
+    std::set<const void*> building_;  // BSDFs and textures being built (a ref cycle guard)
+    std::vector<std::string> warnings_;
+    std::vector<std::string> inputs_;
+    TriangleMesh mesh_;
+    std::vector<Material> materials_;
+    std::vector<MeshStats> stats_;
+    std::shared_ptr<BuiltBsdf> default_bsdf_;
+    bool have_sensor_ = false, have_integrator_ = false;
+    CameraDesc camera_;
+    RenderDefaults defaults_;
+    std::vector<std::pair<std::string, long long>> int_params_;
+};
+
+// ---------------------------------------------------------------- documents
+
+void Importer::load_doc(const std::string& file, xml_node from) {
+    std::string text;
+    try {
+        text = detail::read_file_text(file);
+    } catch (const InputError& e) {
+        if (from) fail(from, e.what());
+        throw;
+    }
+    Doc& d = docs_.emplace_back();
+    d.file = file;
+    d.dir = fs::path(file).parent_path().string();
+    d.line_starts.push_back(0);
+    for (size_t i = 0; i < text.size(); ++i)
+        if (text[i] == '\n') d.line_starts.push_back(i + 1);
+    const pugi::xml_parse_result r = d.xml.load_buffer(text.data(), text.size(), pugi::parse_default);
+    if (!r) {
+        const size_t off = size_t(std::max<ptrdiff_t>(0, r.offset));
+        const int line = int(std::upper_bound(d.line_starts.begin(), d.line_starts.end(), off) - d.line_starts.begin());
+        throw InputError(fmt::format("{}:{}: malformed XML: {}", file, line, r.description()));
+    }
+    inputs_.push_back(file);
+    const xml_node scene = d.xml.document_element();
+    if (std::string(scene.name()) != "scene")
+        throw InputError(fmt::format("{}:{}: the root element is <{}>, not <scene>: not a Mitsuba scene file", file,
+                                     line_of(scene), scene.name()));
+}
+
+void Importer::collect(xml_node scene, int depth, std::vector<xml_node>& out) {
+    for (xml_node c : scene.children()) {
+        if (c.type() != pugi::node_element) continue;
+        const std::string tag = c.name();
+        if (tag == "default") {
+            const std::string name = need_attr(c, "name");
+            if (!c.attribute("value")) fail(c, "missing attribute 'value'");
+            if (!opt_.defines.count(name) && !params_.count(name)) params_[name] = attr(c, "value");
+            declared_.insert(name);
+        } else if (tag == "include") {
+            if (depth >= 16) fail(c, "includes nest more than 16 deep (does a file include itself?)");
+            const std::string file = file_path(c, need_attr(c, "filename"));
+            load_doc(file, c);
+            collect(docs_.back().xml.document_element(), depth + 1, out);
+        } else {
+            out.push_back(c);
+        }
+    }
+}
+
+void Importer::index_ids(xml_node n) {
+    for (xml_node c : n.children()) {
+        if (c.type() != pugi::node_element) continue;
+        if (std::string(c.name()) != "ref" && c.attribute("id")) {
+            const std::string id = attr(c, "id");
+            const auto [it, fresh] = ids_.emplace(id, c);
+            if (!fresh) fail(c, fmt::format("id '{}' is given twice (also at line {})", id, line_of(it->second)));
+        }
+        index_ids(c);
+    }
+}
+
+Props Importer::props(xml_node owner) {
+    static const std::set<std::string> kTags = {"float", "integer", "boolean", "string", "rgb", "srgb", "spectrum",
+                                                "blackbody", "point", "vector", "transform", "texture", "ref", "bsdf",
+                                                "emitter", "sampler", "film", "rfilter", "shape", "medium", "phase",
+                                                "integrator", "sensor", "volume"};
+    Props p;
+    p.owner = owner;
+    for (xml_node c : owner.children()) {
+        if (c.type() != pugi::node_element) continue;
+        const std::string tag = c.name();
+        if (!kTags.count(tag)) fail(c, "unknown element <" + tag + ">");
+        const bool value_tag = tag != "bsdf" && tag != "emitter" && tag != "sampler" && tag != "film" &&
+                               tag != "rfilter" && tag != "shape" && tag != "medium" && tag != "phase" &&
+                               tag != "integrator" && tag != "sensor" && tag != "ref" && tag != "texture";
+        if (c.attribute("name")) {
+            const std::string name = snake_case(attr(c, "name"));
+            const auto [it, fresh] = p.named.emplace(name, c);
+            if (!fresh) fail(c, fmt::format("property '{}' is given twice (also at line {})", name, line_of(it->second)));
+        } else if (value_tag) {
+            fail(c, "a property needs a 'name'");
+        } else {
+            p.objects.push_back(c);
+        }
+    }
+    return p;
+}
+
+// ---------------------------------------------------------------- values
+
+Color Importer::colour_of(xml_node n) {
+    const std::string tag = n.name();
+    if (tag == "float" || tag == "integer") return Color(float(number(n, need_attr(n, "value"), "'value'")));
+    if (tag == "rgb" || tag == "srgb") {
+        const std::string v = need_attr(n, "value");
+        std::vector<double> c;
+        if (!v.empty() && v[0] == '#') {
+            if (v.size() != 7) fail(n, "a hexadecimal colour needs 6 digits (#rrggbb), got '" + v + "'");
+            for (int k = 0; k < 3; ++k) {
+                unsigned x = 0;
+                const auto r = std::from_chars(v.data() + 1 + 2 * k, v.data() + 3 + 2 * k, x, 16);
+                if (r.ec != std::errc() || r.ptr != v.data() + 3 + 2 * k) fail(n, "malformed colour '" + v + "'");
+                c.push_back(srgb_to_linear(float(x) / 255.f));
+            }
+            return Color(float(c[0]), float(c[1]), float(c[2]));
+        }
+        c = numbers(n, v, "'value'");
+        if (c.size() == 1) c = {c[0], c[0], c[0]};
+        if (c.size() != 3) fail(n, "'value' must hold 1 or 3 numbers, got '" + v + "'");
+        Color r = Color(float(c[0]), float(c[1]), float(c[2]));
+        if (tag == "srgb")
+            for (int k = 0; k < 3; ++k) r[k] = srgb_to_linear(r[k]);
+        return r;
+    }
+    if (tag == "spectrum") {
+        if (n.attribute("filename")) {
+            unsupported(n, "spectra from files", "uses grey 0.5");
+            return Color(0.5f);
+        }
+        const std::string v = need_attr(n, "value");
+        if (v.find(':') != std::string::npos) {
+            unsupported(n, "wavelength:value spectra (gdr renders RGB; give <rgb>)", "uses their mean value");
+            double sum = 0.0;
+            int count = 0;
+            std::stringstream in(v);
+            std::string pair;
+            while (std::getline(in, pair, ',')) {
+                const size_t colon = pair.find(':');
+                if (colon == std::string::npos) fail(n, "malformed spectrum '" + v + "'");
+                sum += number(n, pair.substr(colon + 1), "a spectrum value"), ++count;
+            }
+            return Color(count ? float(sum / count) : 0.f);
+        }
+        const auto c = numbers(n, v, "'value'");
+        if (c.size() == 1) return Color(float(c[0]));
+        if (c.size() == 3) return Color(float(c[0]), float(c[1]), float(c[2]));
+        fail(n, "'value' must hold 1 number (or wavelength:value pairs), got '" + v + "'");
+    }
+    if (tag == "blackbody") {
+        unsupported(n, "blackbody spectra (gdr renders RGB; give <rgb>)", "uses white 1");
+        return Color(1.f);
+    }
+    fail(n, "expected a colour (<rgb>, <srgb>, <spectrum> or <float>)");
+}
+
+std::shared_ptr<Texture> Importer::get_texture(Props& p, const std::string& name, const Color& def) {
+    const xml_node n = take(p, name);
+    if (!n) return make_constant_texture(def);
+    const std::string tag = n.name();
+    if (tag == "texture") return texture(n);
+    if (tag == "ref") {
+        const xml_node t = resolve(n);
+        if (std::string(t.name()) != "texture") fail(n, "refers to " + describe(t) + ", not a <texture>");
+        return texture(t);
+    }
+    return make_constant_texture(colour_of(n));
+}
+
+Mat4 Importer::transform_of(xml_node t, bool* nine) {
+    Mat4 m(1.f);
+    if (nine) *nine = false;
+    for (xml_node c : t.children()) {
+        if (c.type() != pugi::node_element) continue;
+        const std::string tag = c.name();
+        Mat4 op(1.f);
+        if (tag == "translate") {
+            op = glm::translate(Mat4(1.f), xyz(c, 0.f));
+        } else if (tag == "scale") {
+            op = glm::scale(Mat4(1.f), xyz(c, 1.f));
+        } else if (tag == "rotate") {
+            Vec3 axis;
+            if (c.attribute("value")) {
+                const auto v = numbers(c, attr(c, "value"), "'value'");
+                if (v.size() != 3) fail(c, "'value' must be the rotation axis (3 numbers)");
+                axis = Vec3(float(v[0]), float(v[1]), float(v[2]));
+            } else {
+                axis = xyz(c, 0.f);
+            }
+            if (!(glm::length(axis) > 0.f)) fail(c, "the rotation axis is zero");
+            const float angle = float(number(c, need_attr(c, "angle"), "'angle'"));
+            op = glm::rotate(Mat4(1.f), glm::radians(angle), glm::normalize(axis));
+        } else if (tag == "matrix") {
+            const auto v = numbers(c, need_attr(c, "value"), "'value'");
+            if (v.size() == 9) {
+                // A 3x3 matrix (row-major): embedded so that its third row and column act on (x, y, 1) of uv.
+                for (int r = 0; r < 3; ++r)
+                    for (int k = 0; k < 3; ++k) op[k == 2 ? 3 : k][r == 2 ? 3 : r] = float(v[3 * r + k]);
+                if (nine) *nine = true;
+            } else if (v.size() == 16) {
+                for (int i = 0; i < 16; ++i) op[i % 4][i / 4] = float(v[i]);
+            } else {
+                fail(c, "'value' must hold 16 numbers (4x4, row-major) or 9 (3x3), got " + std::to_string(v.size()));
+            }
+        } else if (tag == "lookat") {
+            const auto vec = [&](const char* a, bool need) {
+                if (!c.attribute(a)) {
+                    if (need) fail(c, std::string("missing attribute '") + a + "'");
+                    return Vec3(0.f, 1.f, 0.f);
+                }
+                const auto v = numbers(c, attr(c, a), std::string("'") + a + "'");
+                if (v.size() != 3) fail(c, std::string("'") + a + "' must hold 3 numbers");
+                return Vec3(float(v[0]), float(v[1]), float(v[2]));
+            };
+            const Vec3 o = vec("origin", true), target = vec("target", true), up = vec("up", false);
+            const Vec3 d = target - o;
+            if (!(glm::length(d) > 0.f)) fail(c, "origin and target coincide");
+            const Vec3 dir = glm::normalize(d);
+            const Vec3 l = glm::cross(up, dir);
+            if (!(glm::length(l) > 1e-6f)) fail(c, "up is parallel to the viewing direction");
+            const Vec3 left = glm::normalize(l);
+            const Vec3 new_up = glm::cross(dir, left);
+            op = Mat4(Vec4(left, 0.f), Vec4(new_up, 0.f), Vec4(dir, 0.f), Vec4(o, 1.f));
+        } else {
+            fail(c, "unknown transform operation <" + tag + "> (expected translate, rotate, scale, matrix, lookat)");
+        }
+        m = op * m;  // each operation applies after the ones before it
+    }
+    return m;
+}
+
+glm::mat3 Importer::get_uv_transform(Props& p) {
+    glm::mat3 m(1.f);
+    if (const xml_node n = take(p, "to_uv")) {
+        expect_tag(n, {"transform"});
+        const Mat4 t = transform_of(n);
+        // The 2D affine part: x and y rows, the x, y and translation columns.
+        m = glm::mat3(Vec3(t[0][0], t[0][1], 0.f), Vec3(t[1][0], t[1][1], 0.f), Vec3(t[3][0], t[3][1], 1.f));
+    }
+    // Mitsuba 0.6's offsets and scales: uv * scale + offset.
+    bool given[4];
+    const float us = get_float(p, "uscale", 1.f, &given[0]), vs = get_float(p, "vscale", 1.f, &given[1]);
+    const float uo = get_float(p, "uoffset", 0.f, &given[2]), vo = get_float(p, "voffset", 0.f, &given[3]);
+    if (given[0] || given[1] || given[2] || given[3])
+        m = glm::mat3(Vec3(us, 0.f, 0.f), Vec3(0.f, vs, 0.f), Vec3(uo, vo, 1.f)) * m;
+    return m;
+}
+
+float Importer::ior(Props& p, const std::string& name, float def) {
+    const xml_node n = take(p, name);
+    if (!n) return def;
+    if (std::string(n.name()) == "string") {
+        std::string v = need_attr(n, "value");
+        for (char& ch : v) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+        for (const NamedIor& k : kIors)
+            if (v == k.name) return k.ior;
+        std::string list;
+        for (const NamedIor& k : kIors) list += (list.empty() ? "" : ", ") + std::string(k.name);
+        fail(n, "unknown index of refraction '" + v + "' (known: " + list + ")");
+    }
+    expect_tag(n, {"float", "integer"});
+    const float v = float(number(n, need_attr(n, "value"), "'value'"));
+    if (!(v > 0.f)) fail(n, "an index of refraction must be positive");
+    return v;
+}
+
+Color Importer::conductor_f0(Props& p, xml_node n) {
+    const xml_node eta_n = take(p, "eta"), k_n = take(p, "k");
+    const std::string def_material = version_major_ < 2 ? "Cu" : "none";
+    const std::string material = get_string(p, "material", def_material);
+    const float ext = ior(p, "ext_eta", 1.f);
+    Color f0;
+    if (eta_n || k_n) {
+        if (!eta_n || !k_n) fail(n, "give both 'eta' and 'k' (or a 'material')");
+        const Color eta = colour_of(eta_n) / ext, k = colour_of(k_n) / ext;
+        f0 = conductor_reflectance(eta, k);
+    } else if (!named_conductor_reflectance(material, f0)) {
+        std::string list;
+        for (const NamedConductor& c : kConductors) list += (list.empty() ? "" : ", ") + std::string(c.name);
+        fail(n, "unknown conductor material '" + material + "' (known: " + list + ")");
+    } else if (ext != 1.f) {
+        unsupported(n, "a named conductor in a medium other than vacuum (ext_eta)", "ignores ext_eta");
+    }
+    const Color spec = get_colour(p, "specular_reflectance", Color(1.f));
+    return glm::clamp(f0 * spec, Color(0.f), Color(1.f));
+}
+
+// ---------------------------------------------------------------- BSDFs and textures
+
+std::shared_ptr<BuiltBsdf> Importer::bsdf(xml_node n) {
+    if (std::string(n.name()) == "ref") {
+        const xml_node b = resolve(n);
+        if (std::string(b.name()) != "bsdf") fail(n, "refers to " + describe(b) + ", not a <bsdf>");
+        n = b;
+    }
+    const auto it = bsdfs_.find(n.internal_object());
+    if (it != bsdfs_.end()) return it->second;
+    if (!building_.insert(n.internal_object()).second) fail(n, "refers to itself");
+    auto b = build_bsdf(n);
+    building_.erase(n.internal_object());
+    if (b->name.empty()) b->name = n.attribute("id") ? attr(n, "id") : fmt::format("{} (line {})", attr(n, "type"), line_of(n));
+    bsdfs_[n.internal_object()] = b;
+    return b;
+}
+
+std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
+    const std::string type = need_attr(n, "type");
+    Props p = props(n);
+    auto b = std::make_shared<BuiltBsdf>();
+    const auto nested = [&](bool required) -> std::shared_ptr<BuiltBsdf> {
+        std::vector<xml_node> kids;
+        for (xml_node c : p.objects)
+            if (std::string(c.name()) == "bsdf" || std::string(c.name()) == "ref") kids.push_back(c);
+        if (kids.empty()) {
+            if (required) fail(n, "needs a nested <bsdf> (or <ref>)");
+            return nullptr;
+        }
+        p.used.insert(kids[0].internal_object());
+        return bsdf(kids[0]);
+    };
+    const auto distribution = [&](const std::string& def) {
+        const std::string d = get_string(p, "distribution", def);
+        if (d == "beckmann" || d == "phong" || d == "as")
+            warn(n, "microfacet distribution '" + d + "' is rendered as GGX of the same alpha");
+        else if (d != "ggx")
+            fail(n, "unknown microfacet distribution '" + d + "' (expected ggx or beckmann)");
+    };
+    const auto roughness = [&](float def) {
+        ignore(p, {"sample_visible"});
+        bool given_u = false, given_v = false;
+        const float a = get_float(p, "alpha", def);
+        const float au = get_float(p, "alpha_u", a, &given_u), av = get_float(p, "alpha_v", a, &given_v);
+        if (given_u != given_v) fail(n, "give both alpha_u and alpha_v");
+        float alpha = a;
+        if (given_u) {
+            alpha = std::sqrt(au * av);
+            if (au != av) warn(n, fmt::format("anisotropic roughness ({}, {}) is rendered isotropic, alpha {}", au, av, alpha));
+        }
+        if (!(alpha >= 0.f)) fail(n, "roughness alpha must be >= 0");
+        return alpha;
+    };
+
+    if (type == "diffuse" || type == "roughdiffuse") {
+        // 0.6 also takes the name diffuseReflectance.
+        if (p.named.count("reflectance") && p.named.count("diffuse_reflectance"))
+            fail(n, "give either reflectance or diffuse_reflectance");
+        auto kd = get_texture(p, p.named.count("diffuse_reflectance") ? "diffuse_reflectance" : "reflectance", Color(0.5f));
+        if (type == "roughdiffuse") {
+            ignore(p, {"alpha", "use_fast_approx"});
+            warn(n, "roughdiffuse (Oren-Nayar) is rendered as diffuse (Lambertian) of the same reflectance");
+        }
+        b->bsdf = make_lambertian(std::move(kd));
+    } else if (type == "conductor") {
+        b->bsdf = make_mirror(conductor_f0(p, n));
+    } else if (type == "roughconductor") {
+        distribution("beckmann");
+        const float alpha = roughness(0.1f);
+        const Color f0 = conductor_f0(p, n);
+        b->bsdf = alpha < kMinGgxAlpha ? make_mirror(f0) : make_rough_conductor(f0, alpha);
+    } else if (type == "dielectric" || type == "thindielectric" || type == "roughdielectric") {
+        const float eta = ior(p, "int_ior", 1.5046f) / ior(p, "ext_ior", 1.00028f);
+        for (const char* k : {"specular_reflectance", "specular_transmittance"})
+            if (get_colour(p, k, Color(1.f)) != Color(1.f))
+                unsupported(p.named.at(k), std::string(k) + " other than 1", "renders it as 1");
+        if (type == "dielectric") {
+            b->bsdf = make_dielectric(eta);
+        } else if (type == "thindielectric") {
+            b->bsdf = make_thin_dielectric(eta);
+        } else {
+            distribution("beckmann");
+            const float alpha = roughness(0.1f);
+            b->bsdf = alpha < kMinGgxAlpha ? make_dielectric(eta) : make_rough_dielectric(eta, alpha);
+        }
+    } else if (type == "plastic" || type == "roughplastic") {
+        float alpha = kSmoothPlasticAlpha;
+        if (type == "roughplastic") {
+            distribution("beckmann");
+            alpha = std::max(roughness(0.1f), kMinGgxAlpha);
+        }
+        const float eta = ior(p, "int_ior", 1.49f) / ior(p, "ext_ior", 1.00028f);
+        const bool nonlinear = get_bool(p, "nonlinear", false);
+        const Color spec = get_colour(p, "specular_reflectance", Color(1.f));
+        auto kd = get_texture(p, "diffuse_reflectance", Color(0.5f));
+        const float f0 = ((eta - 1.f) / (eta + 1.f)) * ((eta - 1.f) / (eta + 1.f));
+        const float fdr = internal_diffuse_fresnel(eta);
+        auto coated = std::make_shared<CoatedDiffuseTexture>(std::move(kd), (1.f - f0) * (1.f - f0) / (eta * eta), fdr,
+                                                             nonlinear);
+        b->bsdf = make_plastic(std::move(coated), glm::clamp(spec * f0, Color(0.f), Color(1.f)), alpha);
+    } else if (type == "twosided") {
+        int count = 0;
+        for (xml_node c : p.objects)
+            count += std::string(c.name()) == "bsdf" || std::string(c.name()) == "ref";
+        if (count > 1) unsupported(n, "a twosided BSDF with a different BSDF on each side", "uses the first on both");
+        // gdr's reflective BSDFs are two-sided already: the nested one is the BSDF.
+        const auto inner = nested(true);
+        b->bsdf = inner->bsdf;
+        b->opacity = inner->opacity;
+        for (xml_node c : p.objects) p.used.insert(c.internal_object());
+    } else if (type == "mask") {
+        const auto inner = nested(true);
+        b->bsdf = inner->bsdf;
+        const xml_node o = p.named.count("opacity") ? p.named.at("opacity") : xml_node();
+        if (!o) {
+            b->opacity = make_constant_texture(Color(0.5f));
+            warn(n, "mask without an opacity: Mitsuba's default 0.5 is a cut-out threshold in gdr, so the surface is opaque");
+        } else if (std::string(o.name()) == "texture" || std::string(o.name()) == "ref") {
+            take(p, "opacity");
+            xml_node t = std::string(o.name()) == "ref" ? resolve(o) : o;
+            if (std::string(t.name()) != "texture") fail(o, "refers to " + describe(t) + ", not a <texture>");
+            b->opacity = opacity_texture(t);
+        } else {
+            take(p, "opacity");
+            const Color c = colour_of(o);
+            const float v = luminance(c);
+            if (v != 0.f && v != 1.f)
+                warn(o, fmt::format("constant opacity {} is a cut-out threshold in gdr: the surface is {}", v,
+                                    v < 0.5f ? "invisible" : "opaque"));
+            b->opacity = make_constant_texture(c);
+        }
+    } else if (type == "bumpmap" || type == "normalmap" || type == "blendbsdf" || type == "coating" ||
+               type == "roughcoating") {
+        unsupported(n, "unsupported BSDF type '" + type + "'", "renders its nested BSDF");
+        const auto inner = nested(false);
+        if (inner) b->bsdf = inner->bsdf, b->opacity = inner->opacity;
+        else b->bsdf = make_lambertian(make_constant_texture(Color(0.5f)));
+        for (auto& [name, c] : p.named) p.used.insert(c.internal_object());
+        for (xml_node c : p.objects) p.used.insert(c.internal_object());
+    } else {
+        unsupported(n, "unsupported BSDF type '" + type + "'", "renders it as diffuse grey 0.5");
+        b->bsdf = make_lambertian(make_constant_texture(Color(0.5f)));
+        for (auto& [name, c] : p.named) p.used.insert(c.internal_object());
+        for (xml_node c : p.objects) p.used.insert(c.internal_object());
+    }
+    finish(p);
+    return b;
+}
+
+std::shared_ptr<Texture> Importer::texture(xml_node n) {
+    const auto it = textures_.find(n.internal_object());
+    if (it != textures_.end()) return it->second;
+    if (!building_.insert(n.internal_object()).second) fail(n, "refers to itself");
+    auto t = build_texture(n);
+    building_.erase(n.internal_object());
+    textures_[n.internal_object()] = t;
+    return t;
+}
+
+std::shared_ptr<Texture> Importer::opacity_texture(xml_node t) {
+    const auto it = opacities_.find(t.internal_object());
+    if (it != opacities_.end()) return it->second;
+    std::shared_ptr<Texture> o;
+    if (attr(t, "type") == "bitmap") {
+        // The opacity of a bitmap is its alpha channel where it has one.
+        Props p = props(t);
+        o = bitmap(t, p, true);
+        finish(p);
+    } else {
+        o = texture(t);
+    }
+    opacities_[t.internal_object()] = o;
+    return o;
+}
+
+std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
+    // gdr's uv has v = 0 at the bottom of an image, Mitsuba's at the top; the
+    // loaders store gdr's, so Mitsuba's uv is (u, 1 - v).
+    const glm::mat3 flip(Vec3(1.f, 0.f, 0.f), Vec3(0.f, -1.f, 0.f), Vec3(0.f, 1.f, 1.f));
+    const std::string name = get_string(p, "filename", "");
+    if (name.empty()) fail(n, "a bitmap needs a 'filename'");
+    ImageTextureOptions io;
+    const std::string filter = get_string(p, "filter_type", "bilinear");
+    if (filter == "nearest") io.nearest = true;
+    else if (filter != "bilinear" && filter != "trilinear" && filter != "ewa")
+        fail(n, "unknown filter_type '" + filter + "' (expected bilinear or nearest)");
+    const std::string wrap = get_string(p, "wrap_mode", "repeat");
+    if (wrap == "mirror") io.wrap = TextureWrap::Mirror;
+    else if (wrap == "clamp") io.wrap = TextureWrap::Clamp;
+    else if (wrap != "repeat") unsupported(n, "wrap_mode '" + wrap + "'", "repeats the texture");
+    io.srgb = !get_bool(p, "raw", false);
+    bool gamma_given = false;
+    const float gamma = get_float(p, "gamma", -1.f, &gamma_given);
+    if (gamma_given && gamma == 1.f) io.srgb = false;
+    else if (gamma_given && gamma != -1.f) unsupported(n, fmt::format("gamma {}", gamma), "decodes the file as sRGB");
+    ignore(p, {"max_anisotropy", "cache", "accel", "format"});
+    if (p.named.count("channel")) unsupported(p.named.at("channel"), "a single channel of a bitmap", "uses its colour");
+    take(p, "channel");
+    const glm::mat3 uvm = get_uv_transform(p);
+    const std::string file = file_path(n, name);
+    std::shared_ptr<Texture> t;
+    try {
+        t = opacity ? load_opacity_texture(file, io) : load_image_texture(file, io);
+    } catch (const InputError& e) {
+        fail(n, e.what());
+    }
+    inputs_.push_back(file);
+    // Looked up at Mitsuba's transformed uv, turned back into gdr's.
+    return make_uv_transformed_texture(t, flip * uvm * flip);
+}
+
+std::shared_ptr<Texture> Importer::build_texture(xml_node n) {
+    const std::string type = need_attr(n, "type");
+    Props p = props(n);
+    // gdr's uv has v = 0 at the bottom of an image, Mitsuba's at the top; the
+    // loaders store gdr's, so Mitsuba's uv is (u, 1 - v).
+    const glm::mat3 flip(Vec3(1.f, 0.f, 0.f), Vec3(0.f, -1.f, 0.f), Vec3(0.f, 1.f, 1.f));
+    std::shared_ptr<Texture> t;
+    if (type == "bitmap") {
+        t = bitmap(n, p, false);
+    } else if (type == "checkerboard") {
+        auto c0 = get_texture(p, "color0", Color(0.4f));
+        auto c1 = get_texture(p, "color1", Color(0.2f));
+        const glm::mat3 uvm = get_uv_transform(p);
+        t = make_checkerboard_texture(std::move(c0), std::move(c1), uvm * flip);
+    } else {
+        unsupported(n, "unsupported texture type '" + type + "'", "uses grey 0.5");
+        for (auto& [name, c] : p.named) p.used.insert(c.internal_object());
+        for (xml_node c : p.objects) p.used.insert(c.internal_object());
+        t = make_constant_texture(Color(0.5f));
+    }
+    finish(p);
+    return t;
+}
+
+// ---------------------------------------------------------------- sensor, integrator
+
+void Importer::sensor(xml_node n) {
+    if (have_sensor_) {
+        unsupported(n, "a second <sensor>", "renders with the first");
+        return;
+    }
+    have_sensor_ = true;
+    const std::string type = need_attr(n, "type");
+    if (type != "perspective") unsupported(n, "sensor type '" + type + "'", "renders it as a perspective pinhole");
+    Props p = props(n);
+    bool fov_given = false;
+    float fov = get_float(p, "fov", 45.f, &fov_given);
+    const bool axis_given = p.named.count("fov_axis") != 0;
+    std::string axis = get_string(p, "fov_axis", "x");
+    if (axis != "x" && axis != "y" && axis != "diagonal" && axis != "smaller" && axis != "larger")
+        fail(p.named.at("fov_axis"), "unknown fov_axis '" + axis + "' (expected x, y, diagonal, smaller or larger)");
+    if (axis_given && !fov_given) warn(p.named.at("fov_axis"), "fov_axis applies to fov only, and there is no fov");
+    const xml_node f = take(p, "focal_length");
+    if (f && fov_given) fail(f, "give either fov or focal_length");
+    if (!fov_given) {
+        // A focal length on 35 mm film (36 x 24 mm) gives the diagonal's field
+        // of view; Mitsuba's default is 50 mm.
+        std::string v = "50";
+        if (f) {
+            expect_tag(f, {"string", "float"});
+            v = need_attr(f, "value");
+            if (v.size() > 2 && v.substr(v.size() - 2) == "mm") v.resize(v.size() - 2);
+        }
+        const float mm = float(number(f ? f : n, v, "focal_length"));
+        if (!(mm > 0.f)) fail(f ? f : n, "focal_length must be positive");
+        fov = 2.f * std::atan(std::sqrt(36.f * 36.f + 24.f * 24.f) / (2.f * mm)) * 180.f / kPi;
+        axis = "diagonal";
+    }
+    const Mat4 m = get_transform(p, "to_world");
+    ignore(p, {"near_clip", "far_clip", "shutter_open", "shutter_close", "shutter_open_time", "focus_distance",
+               "aperture_radius"});
+    if (type != "perspective")
+        for (auto& [name, c] : p.named) p.used.insert(c.internal_object());
+    int width = 768, height = 576;
+    for (xml_node c : p.objects) {
+        const std::string tag = c.name();
+        if (tag == "sampler") {
+            p.used.insert(c.internal_object());
+            Props sp = props(c);
+            bool given = false;
+            const long long spp = get_int(sp, "sample_count", 0, &given);
+            if (given) {
+                if (spp < 1) fail(sp.named.at("sample_count"), "sample_count must be at least 1");
+                defaults_.spp = spp;
+            }
+            // gdr's own sampler replaces Mitsuba's; its other settings do not apply.
+            for (auto& [name, x] : sp.named) sp.used.insert(x.internal_object());
+            finish(sp);
+        } else if (tag == "film") {
+            p.used.insert(c.internal_object());
+            Props fp = props(c);
+            const long long w = get_int(fp, "width", 768), h = get_int(fp, "height", 576);
+            if (w < 1 || h < 1 || w > 65536 || h > 65536)
+                fail(c, fmt::format("film size {}x{} must lie in 1..65536 per side", w, h));
+            width = int(w), height = int(h);
+            // How Mitsuba would write its image: not gdr's concern.
+            ignore(fp, {"file_format", "pixel_format", "component_format", "banner", "gamma", "high_quality_edges",
+                        "attach_log", "dithering", "exposure", "tonemap_method", "key", "burn", "sample_border",
+                        "label", "compensate", "metadata"});
+            for (xml_node r : fp.objects) {
+                if (std::string(r.name()) != "rfilter") continue;
+                fp.used.insert(r.internal_object());
+                const std::string rt = need_attr(r, "type");
+                if (rt != "box")
+                    warn(r, "reconstruction filter '" + rt + "' is replaced by gdr's box filter (each sample counts "
+                             "for the pixel it falls in)");
+                Props rp = props(r);
+                for (auto& [name, x] : rp.named) rp.used.insert(x.internal_object());
+                finish(rp);
+            }
+            finish(fp);
+        }
+    }
+    finish(p);
+
+    const Vec3 pos = Vec3(m * Vec4(0.f, 0.f, 0.f, 1.f));
+    const Vec3 fwd = Vec3(m * Vec4(0.f, 0.f, 1.f, 0.f)), up = Vec3(m * Vec4(0.f, 1.f, 0.f, 0.f));
+    const Vec3 left = Vec3(m * Vec4(1.f, 0.f, 0.f, 0.f));
+    if (!(glm::length(fwd) > 0.f) || !(glm::length(up) > 0.f) || !is_finite(pos))
+        fail(n, "to_world is degenerate");
+    // Mitsuba's camera x axis points left in the image; gdr's right is cross(forward, up).
+    if (glm::dot(left, glm::cross(fwd, up)) > 0.f)
+        unsupported(n, "a to_world that mirrors the image", "renders it unmirrored");
+    if (!(fov > 0.f && fov < 180.f)) fail(n, fmt::format("fov must lie in (0, 180) degrees, got {}", fov));
+    const float aspect = float(width) / float(height);
+    const float t = std::tan(0.5f * fov * kPi / 180.f);
+    char fov_axis = 'x';
+    if (axis == "x" || axis == "y") {
+        fov_axis = axis[0];
+    } else if (axis == "diagonal") {
+        fov = 2.f * std::atan(t * aspect / std::sqrt(aspect * aspect + 1.f)) * 180.f / kPi;
+    } else if (axis == "smaller" || axis == "larger") {
+        fov_axis = (axis == "smaller") == (width <= height) ? 'x' : 'y';
+    } else {
+        fail(n, "unknown fov_axis '" + axis + "' (expected x, y, diagonal, smaller or larger)");
+    }
+    camera_.position = pos;
+    camera_.target = pos + glm::normalize(fwd);
+    camera_.up = glm::normalize(up);
+    camera_.fov_deg = fov;
+    camera_.fov_axis = fov_axis;
+    camera_.width = width, camera_.height = height;
+}
+
+void Importer::integrator(xml_node n) {
+    if (have_integrator_) {
+        unsupported(n, "a second <integrator>", "uses the first");
+        return;
+    }
+    have_integrator_ = true;
+    const std::string type = need_attr(n, "type");
+    Props p = props(n);
+    bool depth_given = false, rr_given = false;
+    const long long depth = get_int(p, "max_depth", -1, &depth_given);
+    const long long rr = get_int(p, "rr_depth", 5, &rr_given);
+    if (depth_given && (depth < -1 || depth == 0)) fail(p.named.at("max_depth"), "max_depth must be -1 (unlimited) or positive");
+    if (rr_given && rr < 1) fail(p.named.at("rr_depth"), "rr_depth must be positive");
+    static const std::map<std::string, std::string> kKnown = {
+        {"path", "pt"}, {"volpath", "pt"}, {"volpath_simple", "pt"}, {"bdpt", "bdpt"}, {"gpt", "gpt"}};
+    const auto it = kKnown.find(type);
+    if (it != kKnown.end()) {
+        defaults_.integrator = it->second;
+        ignore(p, {"strict_normals", "block_size", "samples_per_pass", "time_limit"});
+        finish(p);
+    } else {
+        // Another estimator (photon mapping, path guiding, ...) of the same
+        // image: gdr renders it with its path tracer.
+        std::string rest;
+        for (auto& [name, c] : p.named)
+            if (!p.used.count(c.internal_object())) rest += (rest.empty() ? "" : ", ") + name, p.used.insert(c.internal_object());
+        warn(n, "integrator '" + type + "' is rendered with gdr's pt (choose another with --integrator)" +
+                    (rest.empty() ? "" : "; its " + rest + " do not apply"));
+        for (xml_node c : p.objects) unsupported(c, "a nested element of an integrator", "ignores it");
+    }
+    if (depth_given) int_params_.push_back({"max_depth", depth});
+    if (rr_given) int_params_.push_back({"rr_depth", rr});
+}
+
+// ---------------------------------------------------------------- shapes
+
+uint32_t Importer::material_for(const std::shared_ptr<BuiltBsdf>& b, const Color& emission,
+                                const std::string& shape_name, xml_node at) {
+    if (is_black(emission)) {
+        if (b->material < 0) {
+            b->material = int(materials_.size());
+            Material m;
+            m.name = b->name;
+            m.bsdf = b->bsdf;
+            m.opacity = b->opacity;
+            materials_.push_back(std::move(m));
+        }
+        return uint32_t(b->material);
+    }
+    if (b->opacity) unsupported(at, "an area emitter with a mask BSDF", "renders the emitter opaque");
+    Material m;
+    m.name = shape_name;
+    m.bsdf = b->bsdf;
+    m.emission = emission;
+    materials_.push_back(std::move(m));
+    return uint32_t(materials_.size() - 1);
+}
+
+void Importer::add_triangles(const std::vector<Vec3>& p, std::vector<Vec3> nrm, const std::vector<Vec2>& uv,
+                             const Mat4& xf, bool flip, uint32_t material, const std::string& file) {
+    const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
+    // A mirroring transform reverses the winding; swapping two corners keeps
+    // the front (emitting) side on the side the transformed normals point to.
+    const bool swap = (glm::determinant(glm::mat3(xf)) < 0.f) != flip;
+    MeshStats ms{file, p.size() / 3, 0};
+    for (size_t t = 0; t + 2 < p.size(); t += 3) {
+        Vec3 q[3], n[3];
+        Vec2 w[3];
+        for (int k = 0; k < 3; ++k) {
+            q[k] = Vec3(xf * Vec4(p[t + k], 1.f));
+            n[k] = nrm.empty() ? Vec3(0.f) : nxf * nrm[t + k] * (flip ? -1.f : 1.f);
+            w[k] = uv.empty() ? Vec2(0.f) : uv[t + k];
+        }
+        if (swap) std::swap(q[1], q[2]), std::swap(n[1], n[2]), std::swap(w[1], w[2]);
+        if (nrm.empty()) n[0] = n[1] = n[2] = glm::cross(q[1] - q[0], q[2] - q[0]);
+        ms.degenerate_skipped += zero_area_triangle(q[0], q[1], q[2]);
+        for (int k = 0; k < 3; ++k) {
+            mesh_.positions.push_back(q[k]);
+            mesh_.normals.push_back(n[k]);
+            mesh_.uvs.push_back(w[k]);
+        }
+        mesh_.material_ids.push_back(material);
+    }
+    stats_.push_back(std::move(ms));
+}
+
+// Per-corner vertex normals that Mitsuba computes for a mesh without any:
+// each vertex's normal is the area-weighted mean of its faces' normals.
+std::vector<Vec3> smooth_normals(const std::vector<Vec3>& pos, const std::vector<uint32_t>& idx) {
+    std::vector<Vec3> acc(pos.size(), Vec3(0.f));
+    for (size_t t = 0; t + 2 < idx.size(); t += 3) {
+        const Vec3 n = glm::cross(pos[idx[t + 1]] - pos[idx[t]], pos[idx[t + 2]] - pos[idx[t]]);
+        for (int k = 0; k < 3; ++k) acc[idx[t + k]] += n;
+    }
+    std::vector<Vec3> out(idx.size());
+    for (size_t i = 0; i < idx.size(); ++i) out[i] = acc[idx[i]];
+    return out;
+}
+
+void Importer::load_obj_shape(xml_node n, const std::string& file, bool face_normals, bool flip_uv, const Mat4& xf,
+                              bool flip, uint32_t material) {
+    detail::ObjLines lines;
+    std::string text;
+    tinyobj::ObjReader reader;
+    try {
+        lines = detail::check_obj_lines(file);
+        text = detail::read_file_text(file);
+    } catch (const InputError& e) {
+        fail(n, e.what());
+    }
+    tinyobj::ObjReaderConfig cfg;
+    cfg.triangulate = true;
+    cfg.vertex_color = false;
+    // Mitsuba ignores the OBJ's materials: its BSDF comes from the scene.
+    if (!reader.ParseFromString(text, "", cfg)) {
+        std::string e = reader.Error();
+        while (!e.empty() && (e.back() == '\n' || e.back() == '\r')) e.pop_back();
+        fail(n, file + ": cannot parse OBJ: " + (e.empty() ? "unknown error" : e));
+    }
+    inputs_.push_back(file);
+    const auto& a = reader.GetAttrib();
+    size_t tris = 0;
+    for (const auto& sh : reader.GetShapes()) tris += sh.mesh.num_face_vertices.size();
+    if (tris != lines.triangles)
+        fail(n, fmt::format("{}: its faces make {} triangles but the OBJ reader kept {} (polygons it cannot "
+                            "triangulate?)",
+                            file, lines.triangles, tris));
+    const size_t nv = a.vertices.size() / 3;
+    std::vector<Vec3> pos(nv), p, nrm;
+    std::vector<Vec2> uv;
+    std::vector<uint32_t> idx;
+    for (size_t i = 0; i < nv; ++i) pos[i] = Vec3(a.vertices[3 * i], a.vertices[3 * i + 1], a.vertices[3 * i + 2]);
+    bool all_n = !face_normals;
+    for (const auto& sh : reader.GetShapes())
+        for (const tinyobj::index_t& c : sh.mesh.indices) {
+            if (c.vertex_index < 0 || size_t(c.vertex_index) >= nv) fail(n, file + ": a face references a missing vertex");
+            if (!is_finite(pos[c.vertex_index]))
+                fail(n, fmt::format("{}: vertex {} is not a finite number", file, c.vertex_index + 1));
+            idx.push_back(uint32_t(c.vertex_index));
+            p.push_back(pos[c.vertex_index]);
+            if (c.normal_index >= 0 && size_t(3 * c.normal_index + 2) < a.normals.size())
+                nrm.emplace_back(a.normals[3 * c.normal_index], a.normals[3 * c.normal_index + 1],
+                                 a.normals[3 * c.normal_index + 2]);
+            else
+                all_n = false, nrm.emplace_back(0.f);
+            if (c.texcoord_index >= 0 && size_t(2 * c.texcoord_index + 1) < a.texcoords.size()) {
+                const float u = a.texcoords[2 * c.texcoord_index], v = a.texcoords[2 * c.texcoord_index + 1];
+                // Mitsuba flips OBJ's v by default (flip_tex_coords), which is gdr's convention already.
+                uv.emplace_back(u, flip_uv ? v : 1.f - v);
+            } else {
+                uv.emplace_back(0.f);
+            }
+        }
+    if (face_normals) nrm.clear();
+    else if (!all_n) nrm = smooth_normals(pos, idx);  // as Mitsuba, when some corner has none
+    add_triangles(p, std::move(nrm), uv, xf, flip, material, file);
+}
+
+void Importer::load_ply_shape(xml_node n, const std::string& file, bool face_normals, const Mat4& xf, bool flip,
+                              uint32_t material) {
+    PlyMesh m;
+    try {
+        m = read_ply(file);
+    } catch (const InputError& e) {
+        fail(n, e.what());
+    }
+    inputs_.push_back(file);
+    std::vector<Vec3> p, nrm;
+    std::vector<Vec2> uv;
+    for (uint32_t i : m.indices) {
+        p.push_back(m.positions[i]);
+        if (!m.normals.empty() && !face_normals) nrm.push_back(m.normals[i]);
+        // PLY stores Mitsuba's uv (v = 0 at the top of an image): gdr's is (u, 1 - v).
+        if (!m.uvs.empty()) uv.emplace_back(m.uvs[i].x, 1.f - m.uvs[i].y);
+    }
+    if (m.normals.empty() && !face_normals) nrm = smooth_normals(m.positions, m.indices);
+    add_triangles(p, std::move(nrm), uv, xf, flip, material, file);
+}
+
+void Importer::shape(xml_node n) {
+    const std::string type = need_attr(n, "type");
+    static const std::set<std::string> kTypes = {"obj", "ply", "rectangle", "cube", "sphere", "disk"};
+    if (!kTypes.count(type)) {
+        unsupported(n, "unsupported shape type '" + type + "'", "skips it");
+        return;
+    }
+    Props p = props(n);
+    const Mat4 xf = get_transform(p, "to_world");
+    const bool flip = get_bool(p, "flip_normals", false);
+    const std::string id = n.attribute("id") ? attr(n, "id") : fmt::format("{} (line {})", type, line_of(n));
+    // Its BSDF and emitter.
+    std::shared_ptr<BuiltBsdf> b;
+    Color radiance(0.f);
+    const auto take_bsdf = [&](xml_node c) {
+        p.used.insert(c.internal_object());
+        if (b) fail(c, "a shape takes one BSDF");
+        b = bsdf(c);
+    };
+    if (p.named.count("bsdf")) take_bsdf(take(p, "bsdf"));
+    for (xml_node c : p.objects) {
+        const std::string tag = c.name();
+        if (tag == "bsdf") {
+            take_bsdf(c);
+        } else if (tag == "ref") {
+            const xml_node r = resolve(c);
+            if (std::string(r.name()) == "bsdf") take_bsdf(c);
+            else if (std::string(r.name()) == "texture") fail(c, "a shape cannot take a texture");
+            // Other references (media) are reported by finish().
+        } else if (tag == "emitter") {
+            p.used.insert(c.internal_object());
+            const std::string et = need_attr(c, "type");
+            if (et != "area") {
+                unsupported(c, "emitter type '" + et + "' on a shape (gdr's shapes emit as area lights)", "skips it");
+                continue;
+            }
+            if (!is_black(radiance)) fail(c, "a shape takes one area emitter");
+            Props ep = props(c);
+            radiance = get_colour(ep, "radiance", Color(1.f));
+            ignore(ep, {"sampling_weight"});
+            finish(ep);
+            if (!(radiance.r >= 0.f && radiance.g >= 0.f && radiance.b >= 0.f))
+                fail(c, "radiance must be >= 0 per channel");
+        }
+    }
+    if (!b) {
+        if (!default_bsdf_) {
+            default_bsdf_ = std::make_shared<BuiltBsdf>();
+            default_bsdf_->bsdf = make_lambertian(make_constant_texture(Color(0.5f)));
+            default_bsdf_->name = "(default diffuse 0.5)";
+        }
+        b = default_bsdf_;
+    }
+    const auto label = [&](const std::string& what) { return what + " '" + id + "'"; };
+    if (type == "obj" || type == "ply") {
+        const std::string name = get_string(p, "filename", "");
+        if (name.empty()) fail(n, "needs a 'filename'");
+        const bool face_normals = get_bool(p, "face_normals", false);
+        const bool flip_uv = type == "obj" ? get_bool(p, "flip_tex_coords", true) : true;
+        ignore(p, {"collapse"});
+        if (p.named.count("max_smooth_angle")) {
+            unsupported(p.named.at("max_smooth_angle"), "max_smooth_angle", "keeps the mesh's own normals");
+            take(p, "max_smooth_angle");
+        }
+        finish(p);
+        const std::string file = file_path(n, name);
+        if (const std::string why = detail::not_a_file(file); !why.empty()) {
+            // Published scenes are sometimes shipped without their largest meshes.
+            if (!opt_.lenient) fail(n, file + why + " (--lenient skips the shape with a warning)");
+            warn(n, file + why + "; the shape is skipped (--lenient)");
+            return;
+        }
+        const uint32_t mat = material_for(b, radiance, id, n);
+        if (type == "obj") load_obj_shape(n, file, face_normals, flip_uv, xf, flip, mat);
+        else load_ply_shape(n, file, face_normals, xf, flip, mat);
+        return;
+    }
+    std::vector<Vec3> pos, nrm;
+    std::vector<Vec2> uv;  // gdr's convention: (u, 1 - v) of Mitsuba's
+    const auto corner = [&](const Vec3& q, const Vec3& nn, const Vec2& muv) {
+        pos.push_back(q), nrm.push_back(nn), uv.emplace_back(muv.x, 1.f - muv.y);
+    };
+    Mat4 shape_xf = xf;
+    if (type == "rectangle") {
+        const Vec3 c[4] = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+        const Vec2 t[4] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+        for (int k : {0, 1, 2, 0, 2, 3}) corner(c[k], Vec3(0, 0, 1), t[k]);
+    } else if (type == "cube") {
+        for (int axis = 0; axis < 3; ++axis)
+            for (float s : {-1.f, 1.f}) {
+                Vec3 nn(0.f), t1(0.f), t2(0.f);
+                nn[axis] = s, t1[(axis + 1) % 3] = s, t2[(axis + 2) % 3] = 1.f;
+                const Vec3 c[4] = {nn - t1 - t2, nn + t1 - t2, nn + t1 + t2, nn - t1 + t2};
+                const Vec2 t[4] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+                for (int k : {0, 1, 2, 0, 2, 3}) corner(c[k], nn, t[k]);
+            }
+    } else if (type == "sphere") {
+        const Vec3 center = get_point(p, "center", Vec3(0.f));
+        const float r = get_float(p, "radius", 1.f);
+        if (!(r > 0.f)) fail(n, "radius must be positive");
+        shape_xf = xf * glm::translate(Mat4(1.f), center) * glm::scale(Mat4(1.f), Vec3(r));
+        // A UV sphere with its poles on the local y axis, as the shared scenes' conversions.
+        const auto at = [](int i, int j) {
+            const float th = kPi * float(j) / float(kSphereRings), ph = 2.f * kPi * float(i) / float(kSphereSegments);
+            return Vec3(std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph));
+        };
+        const auto tex = [](int i, int j) { return Vec2(float(i) / kSphereSegments, float(j) / kSphereRings); };
+        for (int j = 0; j < kSphereRings; ++j)
+            for (int i = 0; i < kSphereSegments; ++i) {
+                const int a[2] = {i, j}, b2[2] = {i, j + 1}, c[2] = {i + 1, j + 1}, d[2] = {i + 1, j};
+                if (j + 1 < kSphereRings)  // below the south pole's ring this triangle is degenerate
+                    for (const int* v : {a, c, b2}) corner(at(v[0], v[1]), at(v[0], v[1]), tex(v[0], v[1]));
+                if (j > 0)  // at the north pole likewise
+                    for (const int* v : {a, d, c}) corner(at(v[0], v[1]), at(v[0], v[1]), tex(v[0], v[1]));
+            }
+    } else {  // disk
+        for (int i = 0; i < kDiskSegments; ++i) {
+            const float p0 = 2.f * kPi * float(i) / kDiskSegments, p1 = 2.f * kPi * float(i + 1) / kDiskSegments;
+            const float mid = (float(i) + 0.5f) / kDiskSegments;
+            corner(Vec3(0.f), Vec3(0, 0, 1), Vec2(0.f, mid));
+            corner(Vec3(std::cos(p0), std::sin(p0), 0.f), Vec3(0, 0, 1), Vec2(1.f, float(i) / kDiskSegments));
+            corner(Vec3(std::cos(p1), std::sin(p1), 0.f), Vec3(0, 0, 1), Vec2(1.f, float(i + 1) / kDiskSegments));
+        }
+    }
+    finish(p);
+    const uint32_t mat = material_for(b, radiance, id, n);
+    add_triangles(pos, std::move(nrm), uv, shape_xf, flip, mat, label(type));
+}
+
+void Importer::emitter(xml_node n) {
+    const std::string type = need_attr(n, "type");
+    if (type == "constant" || type == "envmap" || type == "sunsky" || type == "sky" || type == "sun") {
+        if (!opt_.lenient)
+            fail(n, "environment lights (constant, envmap, sunsky) are not supported yet (--lenient skips it with a "
+                    "warning and renders the scene's area lights)");
+        warn(n, "environment lights are not supported yet; skipped (--lenient), so only the area lights light the scene");
+        return;
+    }
+    if (type == "area") fail(n, "an area emitter belongs inside a <shape>");
+    unsupported(n, "emitter type '" + type + "' (gdr renders area lights only)", "skips it");
+}
+
+SceneFile Importer::run() {
+    params_ = opt_.defines;
+    load_doc(path_, {});
+    const xml_node scene = docs_.front().xml.document_element();
+    if (scene.attribute("version")) {
+        const std::string v = raw(scene, "version");
+        int major = 0;
+        const auto r = std::from_chars(v.data(), v.data() + v.size(), major);
+        if (r.ec != std::errc() || major < 0 || major > 3)
+            fail(scene, "unsupported scene version '" + v + "' (gdr reads Mitsuba 0.6 to 3.x)");
+        version_major_ = major;
+    }
+    std::vector<xml_node> top;
+    collect(scene, 0, top);
+    for (xml_node n : top) {
+        if (n.attribute("id") && std::string(n.name()) != "ref") {
+            const std::string id = attr(n, "id");
+            const auto [it, fresh] = ids_.emplace(id, n);
+            if (!fresh) fail(n, fmt::format("id '{}' is given twice (also at line {})", id, line_of(it->second)));
+        }
+        index_ids(n);
+    }
+    for (xml_node n : top) {
+        const std::string tag = n.name();
+        if (tag == "sensor") sensor(n);
+        else if (tag == "integrator") integrator(n);
+        else if (tag == "shape") shape(n);
+        else if (tag == "bsdf") bsdf(n);
+        else if (tag == "texture") texture(n);
+        else if (tag == "emitter") emitter(n);
+        else if (tag == "medium" || tag == "phase" || tag == "volume" || tag == "alias" || tag == "path" || tag == "null")
+            unsupported(n, "unsupported element <" + tag + ">", "skips it");
+        else fail(n, "unknown element <" + tag + ">");
+    }
+    for (const auto& [name, value] : opt_.defines)
+        if (!used_params_.count(name))
+            throw InputError(path_ + ": -D " + name + "=" + value +
+                             (declared_.count(name) ? ": the scene declares $" + name + " but uses it nowhere"
+                                                    : ": the scene has no parameter $" + name));
+    if (!have_sensor_) throw InputError(path_ + ": the scene has no <sensor> (gdr needs a perspective camera)");
+    if (mesh_.size() == 0) throw InputError(path_ + ": the scene has no shapes");
+
+    SceneFile sf;
+    sf.path = path_;
+    Camera camera;
+    try {
+        camera = Camera(camera_);
+    } catch (const Error& e) {
+        throw InputError(path_ + ": <sensor>: " + e.what());
+    }
+    sf.defaults = defaults_;
+    sf.defaults.params = Params(path_);
+    for (const auto& [k, v] : int_params_) sf.defaults.params.set(k, v);
+    sf.meshes = std::move(stats_);
+    sf.scene = std::make_unique<Scene>(std::move(mesh_), std::move(materials_), camera, path_);
+    std::set<std::string> seen;
+    for (std::string& f : inputs_)
+        if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
+    sf.content_hash = scene_content_hash(path_, sf.inputs);
+    if (!opt_.defines.empty()) {
+        // -D values make another scene of the same files: they are hashed too (FNV-1a 64).
+        std::string key = sf.content_hash;
+        for (const auto& [name, value] : opt_.defines) key += '\0' + name + '=' + value;
+        uint64_t h = 0xcbf29ce484222325ull;
+        for (const unsigned char c : key) h = (h ^ c) * 0x100000001b3ull;
+        sf.content_hash = fmt::format("{:016x}", h);
+    }
+    sf.warnings = std::move(warnings_);
+    return sf;
+}
+
+}  // namespace
+
+Color conductor_reflectance(const Color& eta, const Color& k) {
+    Color f;
+    for (int i = 0; i < 3; ++i) {
+        const float e = eta[i], kk = k[i];
+        f[i] = ((e - 1.f) * (e - 1.f) + kk * kk) / ((e + 1.f) * (e + 1.f) + kk * kk);
+    }
+    return f;
+}
+
+bool named_conductor_reflectance(const std::string& name, Color& f0) {
+    for (const NamedConductor& c : kConductors)
+        if (name == c.name) return f0 = Color(c.r, c.g, c.b), true;
+    return false;
+}
+
+SceneFile load_mitsuba_scene(const std::string& path, const SceneFileOptions& options) {
+    Importer imp(path, options);
+    try {
+        return imp.run();
+    } catch (const Error&) {
+        throw;
+    } catch (const std::exception& e) {
+        // Nothing else should escape, but a malformed file must never end the process.
+        throw InputError(path + ": " + e.what());
+    }
+}
+
+}  // namespace gdr
