@@ -92,6 +92,14 @@ inline double max_z(const BlockStats& a, const BlockStats& b) {
     return worst;
 }
 
+// Block statistics scaled by `gain`: a deliberately wrong estimate, for the
+// power checks.
+inline BlockStats scaled(BlockStats s, double gain) {
+    for (double& m : s.mean) m *= gain;
+    for (double& e : s.se) e *= gain;
+    return s;
+}
+
 // Block statistics of the grey value of layer `layer` over renders `fbs`
 // (one per run), in blocks of `block` pixels.
 inline BlockStats grey_stats(const std::vector<FrameBuffer>& fbs, const std::string& layer, int block) {

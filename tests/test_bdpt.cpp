@@ -43,13 +43,6 @@ SceneFile scene_at(const std::string& rel, int res) {
     return sf;
 }
 
-// An image's grey statistics scaled by `gain` (a deliberately wrong estimate).
-BlockStats scaled(BlockStats s, double gain) {
-    for (double& m : s.mean) m *= gain;
-    for (double& e : s.se) e *= gain;
-    return s;
-}
-
 }  // namespace
 
 TEST_CASE("bdpt equals pt in expectation on the bundled scenes", "[bdpt][statistical]") {

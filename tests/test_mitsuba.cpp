@@ -667,12 +667,6 @@ SceneFile at_res(const std::string& path, int w, int h, const SceneFileOptions& 
     return sf;
 }
 
-BlockStats scaled(BlockStats s, double gain) {
-    for (double& m : s.mean) m *= gain;
-    for (double& e : s.se) e *= gain;
-    return s;
-}
-
 }  // namespace
 
 TEST_CASE("mitsuba: the Cornell box's cameras from XML and camera.json agree exactly", "[mitsuba][shared]") {
