@@ -380,7 +380,7 @@ TEST_CASE("bdpt: images are bit-identical for 1 and 2 threads and any batch size
     CHECK(std::memcmp(a.get("color").data(), d.get("color").data(), a.get("color").values().size() * sizeof(float)) != 0);
 }
 
-TEST_CASE("bdpt: strategy layers add up to the image of short paths; parameters are validated", "[bdpt]") {
+TEST_CASE("bdpt: strategy layers add up to the image of short paths, parameters are validated", "[bdpt]") {
     const auto scene = small_box("Glossy", 12);
     const FrameBuffer fb = render(*scene, "bdpt", params({{"max_depth", "4"}, {"strategy_layers", "true"}}), 8, 3);
     for (const char* layer : {"color", "albedo", "normal", "depth", "variance", "spp", "strategy_s0_t2", "strategy_s2_t1",

@@ -75,7 +75,7 @@ TEST_CASE("safety: an output that is an input is refused before any work, naming
     CHECK_NOTHROW(cli::check_not_an_input(out("fresh.exr"), {out("a.exr"), kSmall}));
 }
 
-TEST_CASE("safety: -o must be an EXR; the PNG preview never replaces it", "[cli][safety]") {
+TEST_CASE("safety: -o must be an EXR, the PNG preview never replaces it", "[cli][safety]") {
     // Once wrote the EXR to out.png and then the PNG over it.
     CHECK_THAT(error_of({"render", kSmall, "--spp", "1", "-o", out("out.png")}), Contains("out.png") && Contains(".exr"));
     CHECK_FALSE(fs::exists(out("out.png")));
@@ -182,7 +182,7 @@ TEST_CASE("safety: a damaged spp layer or header is an error naming the file and
     CHECK(stdout_of([&] { cli::run({"info", out("plain.exr")}); }).find("2x2") != std::string::npos);
 }
 
-TEST_CASE("safety: resume finishes the stored target; --spp is a new total; the integrator comes from the file",
+TEST_CASE("safety: resume finishes the stored target, --spp is a new total, the integrator comes from the file",
           "[cli][safety]") {
     REQUIRE(cli::run({"render", kSmall, "--integrator", "gpt", "--spp", "2", "--seed", "4", "-o", out("t2.exr")}) == 0);
     // What an interrupted render of 6 spp leaves: 2 spp of a target of 6.
@@ -214,7 +214,7 @@ TEST_CASE("safety: resume finishes the stored target; --spp is a new total; the 
     CHECK(worst < 1e-5);
 }
 
-TEST_CASE("safety: a merged file merges again; only true overlaps are refused", "[cli][safety]") {
+TEST_CASE("safety: a merged file merges again, only true overlaps are refused", "[cli][safety]") {
     for (const char* seed : {"1", "2", "3"})
         REQUIRE(cli::run({"render", kSmall, "--spp", "2", "--seed", seed, "-o", out(std::string("q") + seed + ".exr")}) == 0);
     REQUIRE(cli::run({"merge", out("q1.exr"), out("q2.exr"), "-o", out("q12.exr")}) == 0);
@@ -259,7 +259,7 @@ TEST_CASE("safety: resolution and field of view from the command line", "[cli][s
     CHECK_THAT(error_of({"render", kSmall, "--set", "fov=200", "-o", out("x.exr")}), Contains("fov") && Contains("200"));
 }
 
-TEST_CASE("safety: info aligns its columns and prints numbers as given; list shows every parameter", "[cli][safety]") {
+TEST_CASE("safety: info aligns its columns and prints numbers as given, list shows every parameter", "[cli][safety]") {
     REQUIRE(cli::run({"render", kSmall, "--integrator", "gpt", "--spp", "1", "--set", "alpha=0.2", "-o", out("i.exr")}) == 0);
     const std::string text = stdout_of([&] { cli::run({"info", out("i.exr")}); });
     CHECK_THAT(text, Contains("alpha=0.2\n") && !Contains("0.20000000000000001") && Contains("threshold=0.001\n"));

@@ -259,7 +259,7 @@ TEST_CASE("submit: bad submissions are refused before anything is written", "[su
     CHECK_FALSE(fs::exists(out("refused.parts")));
 }
 
-TEST_CASE("submit: sbatch is called for the array and for the merge after it; --resume resubmits what is not complete",
+TEST_CASE("submit: sbatch is called for the array and for the merge after it, --resume resubmits what is not complete",
           "[submit]") {
     // Stand-ins for Slurm's commands: sbatch logs its arguments and prints ids 1, 2, ...; squeue prints QUEUE.
     const std::string fake = out("fake slurm");
