@@ -26,7 +26,8 @@ public:
         heuristic_ = p.get_choice("mis", "power", {"power", "balance"}) == "power" ? MisHeuristic::Power
                                                                                   : MisHeuristic::Balance;
         strategy_ = p.get_string("strategy", "all");
-        if (strategy_ != "all" && strategy_ != "light") {
+        mode_ = strategy_ == "all" ? Mode::All : strategy_ == "light" ? Mode::Light : Mode::One;
+        if (mode_ == Mode::One) {
             // "s,t": that strategy alone, unweighted (a test of its estimator).
             const auto comma = strategy_.find(',');
             const auto number = [&](std::string_view v, int& out) {
@@ -94,7 +95,7 @@ protected:
                     if (verts < 2 || (s == 1 && t == 1)) continue;
                     if (max_depth_ > 0 && verts - 1 > max_depth_) break;
                     if (!wanted(s, t)) continue;
-                    const bool weighted = strategy_ == "all";
+                    const bool weighted = mode_ == Mode::All;
                     const ConnectionResult c = connect(scene, light, camera, {s, t}, job.sampler, {heuristic_, -1}, weighted, rays);
                     if (is_black(c.value)) continue;
                     const Color v = weighted ? c.value * float(c.weight) : c.value;
@@ -163,8 +164,11 @@ private:
     }
 
     bool wanted(int s, int t) const {
-        if (strategy_ == "all") return true;
-        if (strategy_ == "light") return t == 1 || (s == 0 && t == 2);
+        switch (mode_) {
+            case Mode::All: return true;
+            case Mode::Light: return t == 1 || (s == 0 && t == 2);
+            case Mode::One: break;
+        }
         return s == only_.s && t == only_.t;
     }
 
@@ -174,7 +178,9 @@ private:
     };
     int max_depth_ = -1, rr_depth_ = 5;
     MisHeuristic heuristic_ = MisHeuristic::Power;
-    std::string strategy_ = "all";
+    std::string strategy_ = "all";  // the parameter as given (describe())
+    // What it selects: every strategy MIS-weighted, light tracing alone, or only_ alone.
+    enum class Mode { All, Light, One } mode_ = Mode::All;
     Connection only_;
     bool strategy_layers_ = false;
     int batch_ = 16;

@@ -26,12 +26,8 @@ double unidirectional_weight(const Scene& scene, const Subpath& camera, Connecti
         if (camera.v[c.t - 2].delta) return 1.0;
         return mis_weight(h, 1.0, {1.0, remap0(pdf_light_origin(scene, end)) / remap0(end.pdf_fwd)});
     }
-    const Vertex& pt = camera.v[c.t - 1];
-    const Vertex& light = *q;
-    const Vec3 d = light.si.p - pt.si.p;
-    const double d2 = double(glm::dot(d, d));
-    const double fwd = nee_pdf_w * std::abs(double(glm::dot(light.si.ng, d))) / (d2 * std::sqrt(d2));
-    return mis_weight(h, 1.0, {1.0, remap0(fwd) / remap0(light.pdf_fwd)});
+    const double fwd = area_density(nee_pdf_w, camera.v[c.t - 1], *q);
+    return mis_weight(h, 1.0, {1.0, remap0(fwd) / remap0(q->pdf_fwd)});
 }
 
 }  // namespace

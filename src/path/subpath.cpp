@@ -8,17 +8,6 @@ namespace gdr {
 
 namespace {
 
-// Area density at `to` of solid-angle density pdf_w from `from`: the cosine
-// is the geometric normal's at a surface or light point, none at the camera.
-double to_area(double pdf_w, const Vertex& from, const Vertex& to) {
-    const Vec3 d = to.si.p - from.si.p;
-    const double d2 = double(glm::dot(d, d));
-    if (!(d2 > 0.0)) return 0.0;
-    double pdf = pdf_w / d2;
-    if (to.type != VertexType::Camera) pdf *= std::abs(double(glm::dot(to.si.ng, d))) / std::sqrt(d2);
-    return pdf;
-}
-
 // pbrt's and Veach's shading-normal correction of importance transport:
 // |wo.ns| |wi.ng| / (|wo.ng| |wi.ns|), so that light subpaths see the
 // adjoint of the BSDF the camera side sees through shading normals.
@@ -52,7 +41,7 @@ void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, cons
         x.type = VertexType::Surface;
         x.wo = -ray.d;
         x.beta = beta;
-        x.pdf_fwd = to_area(pdf_w, path.v[path.v.size() - 2], x);
+        x.pdf_fwd = area_density(pdf_w, path.v[path.v.size() - 2], x);
         if (opt.max_vertices >= 0 && k == opt.max_vertices) return;
         const SurfaceInteraction& si = x.si;
         if (si.material->black) return;
@@ -74,7 +63,7 @@ void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, cons
         pdf_w = x.delta ? 0.0 : double(bs->pdf);
         if (opt.reverse_densities) {
             const double pdf_rev_w = x.delta ? 0.0 : double(bsdf.pdf(bs->wi, wo, si.uv));
-            path.v[path.v.size() - 2].pdf_rev = to_area(pdf_rev_w, x, path.v[path.v.size() - 2]);
+            path.v[path.v.size() - 2].pdf_rev = area_density(pdf_rev_w, x, path.v[path.v.size() - 2]);
         }
         if (k >= opt.rr_depth) {
             const float q = roulette_survival(rel);
@@ -87,6 +76,15 @@ void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, cons
 }
 
 }  // namespace
+
+double area_density(double pdf_w, const Vertex& from, const Vertex& to) {
+    const Vec3d d = Vec3d(to.si.p) - Vec3d(from.si.p);
+    const double dist = glm::length(d);
+    if (!(dist > 0.0)) return 0.0;
+    // The pinhole has no surface: its density takes no cosine.
+    const double cos_at_to = to.type == VertexType::Camera ? 1.0 : glm::dot(Vec3d(to.si.ng), d) / dist;
+    return pdf_w_to_a(pdf_w, dist, cos_at_to);
+}
 
 void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& sampler, const WalkOptions& opt,
                           Subpath& path) {
@@ -158,7 +156,7 @@ double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const
             break;
         }
     }
-    return to_area(pdf_w, cur, next);
+    return area_density(pdf_w, cur, next);
 }
 
 double pdf_light_origin(const Scene& scene, const Vertex& v) {
@@ -171,7 +169,7 @@ double pdf_light_direction(const Vertex& v, const Vertex& next) {
     const Vec3 d = next.si.p - v.si.p;
     const float len = glm::length(d);
     if (!(len > 0.f)) return 0.0;
-    return to_area(std::max(0.f, glm::dot(v.si.ng, d / len)) * kInvPi, v, next);
+    return area_density(std::max(0.f, glm::dot(v.si.ng, d / len)) * kInvPi, v, next);
 }
 
 Color vertex_f(const Vertex& v, const Vec3& w, TransportMode mode) {

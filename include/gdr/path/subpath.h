@@ -96,6 +96,10 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
 /// the film's direction density for the camera; converted with the cosine
 /// at `next` where it is a surface (none at the camera). 0 for a delta lobe.
 double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next);
+/// Area density (1/m^2) at vertex `to` of solid-angle density pdf_w (1/sr)
+/// of the direction from `from`: pdf_w_to_a with the cosine at `to`'s
+/// geometric normal (none at the camera).
+double area_density(double pdf_w, const Vertex& from, const Vertex& to);
 /// Area density (1/m^2) with which a light subpath would start at emitter
 /// point `v` (power and area selection); 0 where it does not emit.
 double pdf_light_origin(const Scene& scene, const Vertex& v);
