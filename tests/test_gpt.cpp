@@ -51,10 +51,10 @@ namespace {
 struct BadReconnection {
     static constexpr std::string_view kName = "bad-reconnection";
     ShiftStep step(const ShiftStepInput& in) const {
-        if (in.k != 0 || !shift::can_reconnect(in)) return ShiftStep{};
+        if (in.k != 1 || !shift::can_reconnect(in)) return ShiftStep{};
         ShiftStep s = shift::reconnect(in);
-        const Vec3 d = in.base.v[1].si.p - in.y.si.p;
-        s.jacobian /= std::max(std::abs(glm::dot(glm::normalize(d), in.base.v[1].si.ng)), 1e-3f);
+        const Vec3 d = in.base.v[2].si.p - in.y.si.p;
+        s.jacobian /= std::max(std::abs(glm::dot(glm::normalize(d), in.base.v[2].si.ng)), 1e-3f);
         return s;
     }
 };
@@ -204,8 +204,8 @@ TEST_CASE("suffixes in closed form (merged or offset-less) equal the vertex-by-v
                     for (int px = 1; px < 23; ++px) {
                         Sampler sampler(SampleKey{7, uint32_t(px), uint32_t(py), 0});
                         const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
-                        trace_camera_path(*scene, film, sampler, TraceOptions{}, path);
-                        if (path.size() == 0) continue;
+                        trace_camera_path(*scene, film, sampler, WalkOptions{}, path);
+                        if (path.size() <= 1) continue;
                         compute_base_terms(*scene, path, h, terms);
                         shift_camera_path(*scene, *shift, ShiftConfig{}, path, Vec2(1.f, 0.f), offset);
                         merged += offset.merged_from != size_t(-1);
@@ -253,7 +253,7 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
     };
     // False if the first hits lie on different surfaces; otherwise requires equal offsets.
     const auto agree = [&](const OffsetPath& p, const OffsetPath& single) {
-        if (!single.v.empty() && !p.v.empty() && !same_surface(single.v[0].y.si, p.v[0].y.si)) return false;
+        if (single.v.size() > 1 && p.v.size() > 1 && !same_surface(single.v[1].y.si, p.v[1].y.si)) return false;
         REQUIRE(p.v.size() == single.v.size());
         REQUIRE(p.size() == single.size());
         REQUIRE(p.merged_from == single.merged_from);
@@ -282,7 +282,7 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                     Sampler sampler(SampleKey{11, uint32_t(px), uint32_t(py), 0});
                     const Vec2 film = Vec2(float(px), float(py)) + sampler.next2d();
                     Sampler sampler8 = sampler;
-                    trace_camera_path(*scene, film, sampler, TraceOptions{}, path);
+                    trace_camera_path(*scene, film, sampler, WalkOptions{}, path);
                     // Border pixels leave some offsets inactive, as in the integrator.
                     bool active[4];
                     for (int d = 0; d < 4; ++d) {
@@ -290,18 +290,18 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                         active[d] = nx >= 0 && ny >= 0 && nx < res && ny < res;
                     }
                     shift_camera_paths4(*scene, *shift, ShiftConfig{}, path, steps, active, packet);
-                    trace_and_shift_camera_paths4(*scene, *shift, ShiftConfig{}, film, sampler8, TraceOptions{}, path8,
+                    trace_and_shift_camera_paths4(*scene, *shift, ShiftConfig{}, film, sampler8, WalkOptions{}, path8,
                                                   steps, active, packet8);
                     // The base traced in the 8-ray packet is the base traced alone.
                     ++bases;
                     const bool same_base = path.size() == path8.size() &&
-                                           (path.size() == 0 || same_surface(path.v[0].si, path8.v[0].si));
+                                           (path.size() <= 1 || same_surface(path.v[1].si, path8.v[1].si));
                     if (!same_base) ++other_base;
                     if (same_base) {
                         REQUIRE(path8.rays == path.rays);
-                        for (size_t k = 0; k < path.size(); ++k) {
+                        for (size_t k = 1; k < path.size(); ++k) {
                             REQUIRE(same_surface(path8.v[k].si, path.v[k].si));
-                            REQUIRE(path8.v[k].scattered == path.v[k].scattered);
+                            REQUIRE(path8.v[k].scattered() == path.v[k].scattered());
                         }
                     }
                     for (int d = 0; d < 4; ++d) {
@@ -316,7 +316,7 @@ TEST_CASE("offsets traced as one packet equal offsets traced one by one", "[gpt]
                         shift_camera_path(*scene, *shift, ShiftConfig{}, path, steps[d], single);
                         ++compared;
                         if (!agree(packet[d], single)) ++other_surface;
-                        if (same_base && path.size() == 0) {
+                        if (same_base && path.size() <= 1) {
                             // Nothing to shift; the offset's camera ray was cast in the packet all the same.
                             CHECK(packet8[d].size() == 0);
                             CHECK(packet8[d].rays == 1);
@@ -366,8 +366,8 @@ TEST_CASE("camera packets of several samples give what one packet per sample giv
                 REQUIRE(packet[j].hit[l] == packet1[j].hit[l]);
                 if (!packet[j].hit[l]) continue;
                 ++hits;
-                const SurfaceInteraction& a = l == 0 ? base[j].v[0].si : out[j][l - 1].v[0].y.si;
-                const SurfaceInteraction& b = l == 0 ? base1[j].v[0].si : out1[j][l - 1].v[0].y.si;
+                const SurfaceInteraction& a = l == 0 ? base[j].v[1].si : out[j][l - 1].v[1].y.si;
+                const SurfaceInteraction& b = l == 0 ? base1[j].v[1].si : out1[j][l - 1].v[1].y.si;
                 REQUIRE(a.prim == b.prim);
                 REQUIRE(std::memcmp(&a.p, &b.p, sizeof(Vec3)) == 0);
                 REQUIRE(a.t == b.t);
@@ -419,20 +419,21 @@ TEST_CASE("an offset traces the light segment of a shared vertex the base left u
     for (uint32_t i = 0; i < 4000; ++i) {
         Sampler sampler(SampleKey{3, 2, 1, i});
         const Vec2 film = Vec2(2.f, 1.f) + sampler.next2d();
-        trace_camera_path(scene, film, sampler, TraceOptions{}, path);
-        if (path.size() < 2 || std::abs(path.v[1].si.p.x) > 1e-4f) continue;
-        const PathVertex& x1 = path.v[1];
-        if (!x1.nee.valid || is_black(x1.nee.light.radiance)) continue;
+        trace_camera_path(scene, film, sampler, WalkOptions{}, path);
+        if (path.size() < 3 || std::abs(path.v[2].si.p.x) > 1e-4f) continue;
+        const Vertex& x1 = path.v[2];
+        const LightConnection& nee = path.nee[2];
+        if (!nee.valid || is_black(nee.light.radiance)) continue;
         // The base traced its segment exactly where it has a value.
-        REQUIRE(x1.nee.tested == !is_black(x1.nee.f));
-        if (x1.nee.tested) continue;
+        REQUIRE(nee.tested == !is_black(nee.f));
+        if (nee.tested) continue;
         ++untested;
-        const bool visible = scene.visible(x1.si.p, x1.si.ng, x1.nee.light.p, x1.nee.light.n);
+        const bool visible = scene.visible(x1.si.p, x1.si.ng, nee.light.p, nee.light.n);
         shift_camera_path(scene, *shift, ShiftConfig{}, path, steps[0], single);
         shift_camera_paths4(scene, *shift, ShiftConfig{}, path, steps, active, packet);
         for (const OffsetPath* y : {&single, &packet[0]}) {
-            if (y->v.size() < 2 || !y->v[1].y.on_base || !y->v[1].nee || is_black(y->v[1].nee_f)) continue;
-            CHECK(y->v[1].nee_radiance == (visible ? x1.nee.light.radiance : Color(0.f)));
+            if (y->v.size() < 3 || !y->v[2].y.on_base || !y->v[2].nee || is_black(y->v[2].nee_f)) continue;
+            CHECK(y->v[2].nee_radiance == (visible ? nee.light.radiance : Color(0.f)));
             ++(visible ? lit : blocked);
         }
     }

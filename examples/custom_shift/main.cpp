@@ -19,7 +19,7 @@ struct LateReconnectShift {
     gdr::ShiftStep step(const gdr::ShiftStepInput& in) const {
         using namespace gdr;
         if (!shift::base_has_next(in)) return ShiftStep{};
-        if (in.k == 0) return shift::replay(in);  // never reconnect from the first vertex
+        if (in.k == 1) return shift::replay(in);  // never reconnect from the first hit (base.v[0] is the camera)
         // Later: reconnect where allowed, replay otherwise (keeping the map invertible).
         return shift::reconnect_or(in, shift::replay);
     }

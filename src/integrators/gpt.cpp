@@ -46,30 +46,33 @@ inline double pt_mis_weight(MisHeuristic h, double a_t, double a_other) {
 void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic heuristic, BaseTerms& t) {
     t.v.assign(x.size(), BaseTerms::Vertex{});
     Color beta(1.f);
-    for (size_t k = 0; k < x.size(); ++k) {
-        const PathVertex& X = x.v[k];
+    for (size_t k = 1; k < x.size(); ++k) {
+        const Vertex& X = x.v[k];
+        const LightConnection& nee = x.nee[k];
         BaseTerms::Vertex& T = t.v[k];
         T.beta = beta;
-        if (k >= 1) {
-            const PathVertex& P = x.v[k - 1];
-            T.emit = beta * X.emitted;
+        T.emitted = emitted(X);
+        if (k >= 2) {
+            const Vertex& P = x.v[k - 1];
+            T.emit = beta * T.emitted;
             T.emit_pdf_bsdf = P.bs.pdf;
-            if (!P.bs.is_delta() && P.nee.valid && !is_black(X.emitted)) T.emit_pdf_light = light_pdf_w(scene, P.si.p, X.si);
+            if (!P.bs.is_delta() && x.nee[k - 1].valid && !is_black(T.emitted))
+                T.emit_pdf_light = light_pdf_w(scene, P.si.p, X.si);
         }
-        if (X.nee.valid) {
-            const LightSample& ls = X.nee.light;
-            T.nee_pdf_light = X.nee.pdf_w;
+        if (nee.valid) {
+            const LightSample& ls = nee.light;
+            T.nee_pdf_light = nee.pdf_w;
             if (T.nee_pdf_light > 0.0) {
-                const Vec3& wi = X.nee.wi;
-                T.nee_pdf_bsdf = X.nee.pdf_bsdf;
+                const Vec3& wi = nee.wi;
+                T.nee_pdf_bsdf = nee.pdf_bsdf;
                 T.inv_nee_pdf_light = 1.0 / T.nee_pdf_light;
-                if (X.nee.visible) {
-                    T.nee_unit = X.nee.f * abs_cos_theta(wi) * ls.radiance * float(T.inv_nee_pdf_light);
+                if (nee.visible) {
+                    T.nee_unit = nee.f * abs_cos_theta(wi) * ls.radiance * float(T.inv_nee_pdf_light);
                     T.nee = beta * T.nee_unit;
                 }
             }
         }
-        if (!X.scattered) break;
+        if (!X.scattered()) break;
         T.inv_bs_pdf = 1.0 / double(X.bs.pdf);
         T.inv_scatter_pdf = T.inv_bs_pdf / double(X.rr_survival);
         T.scatter = scatter_weight(X);
@@ -80,16 +83,16 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
     // path-tracing weight of (a_t, a_o) times a function of r alone, and r and
     // beta_y / beta_x stay constant: the whole shared suffix is one product.
     Color next(0.f);  // suffix of vertex k+1 plus its emitter hit, per unit throughput at k+1
-    for (size_t k = x.size(); k-- > 0;) {
-        const PathVertex& X = x.v[k];
+    for (size_t k = x.size(); k-- > 1;) {
+        const Vertex& X = x.v[k];
         BaseTerms::Vertex& T = t.v[k];
         // Weights only where they multiply something (each costs a division).
         T.suffix = is_black(T.nee_unit) ? Color(0.f)
                                         : float(pt_mis_weight(heuristic, T.nee_pdf_light, T.nee_pdf_bsdf)) * T.nee_unit;
-        if (X.scattered && k + 1 < x.size()) T.suffix += T.scatter * next;
+        if (X.scattered() && k + 1 < x.size()) T.suffix += T.scatter * next;
         next = T.suffix;
-        if (k >= 1 && !is_black(X.emitted))
-            next += float(pt_mis_weight(heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
+        if (k >= 2 && !is_black(T.emitted))
+            next += float(pt_mis_weight(heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * T.emitted;
     }
 }
 
@@ -105,8 +108,8 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
     double r = 1.0, r_prev = 1.0;  // offset prefix density / base prefix density (through k-1, k-2)
     const size_t m = y ? y->size() : 0;
     bool y_alive = m > 0;
-    for (size_t k = 0; k < x.size(); ++k) {
-        const PathVertex& X = x.v[k];
+    for (size_t k = 1; k < x.size(); ++k) {
+        const Vertex& X = x.v[k];
         const BaseTerms::Vertex& T = t.v[k];
         const bool has_y = y_alive && k < m;
         // In the shared suffix the offset is the base with its own throughput and prefix density.
@@ -121,19 +124,19 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
             // the plain path-tracing weight and no offset share, so the base's
             // suffix sums give the rest at once.
             Color c = T.suffix;
-            if (k >= 1 && !is_black(X.emitted))
-                c += float(pt_mis_weight(mis.heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * X.emitted;
+            if (k >= 2 && !is_black(T.emitted))
+                c += float(pt_mis_weight(mis.heuristic, T.emit_pdf_bsdf, T.emit_pdf_light)) * T.emitted;
             const Color cx = T.beta * c;
             if (!is_black(cx)) add(e, 1.0, cx, Color(0.f));
             break;
         }
 
         // Emitter reached by BSDF sampling at x_{k-1}.
-        if (k >= 1) {
+        if (k >= 2) {
             Color cy(0.f);
             double b_b = 0.0, b_l = 0.0;
             if (merged) {
-                cy = beta_y * X.emitted;
+                cy = beta_y * T.emitted;
                 if (closed_form || k == y->merged_from) {
                     const ShiftStep& S = y->v[k - 1].step;  // left the shared vertex with its own incoming direction
                     b_b = double(S.pdf) * S.jacobian;
@@ -185,7 +188,7 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
                 add(e, gradient_mis_weight(mis, T.nee_pdf_light, T.nee_pdf_bsdf, b_l, b_b, r), T.nee, cy);
         }
 
-        if (!X.scattered) break;
+        if (!X.scattered()) break;
         r_prev = r;
         if (!closed_form && merged) {
             beta_y *= scatter_weight(X);
@@ -234,7 +237,8 @@ public:
         config_.probabilistic = p.get_choice("classification", "hard", {"hard", "probabilistic"}) == "probabilistic";
         mis_.heuristic = p.get_choice("mis", "power", {"power", "balance"}) == "power" ? MisHeuristic::Power
                                                                                         : MisHeuristic::Balance;
-        std::tie(trace_.max_depth, trace_.rr_depth) = depth_params(p, "gpt");
+        std::tie(trace_.max_vertices, trace_.rr_depth) = depth_params(p, "gpt");
+        trace_.reverse_densities = false;  // G-PT's MIS needs solid-angle densities only
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         batch_ = batch_param(p, "gpt", kMaxBatch);
@@ -250,7 +254,7 @@ public:
         return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
-               "\nmax_depth=" + std::to_string(trace_.max_depth) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
+               "\nmax_depth=" + std::to_string(trace_.max_vertices) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
                "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" +
                (solve_l1_ ? (solve_l2_ ? "l1+l2" : "l1") : (solve_l2_ ? "l2" : "none")) +
                "\nalpha=" + fmt::format("{}", alpha_) + "\n";
@@ -402,7 +406,7 @@ private:
     // The sample's slots from its traced base path and offsets.
     void estimate(const Scene& scene, const CameraPath& path, const OffsetPath* offsets, const bool* inside,
                   BaseTerms& terms, float* out) const {
-        if (path.size() == 0) return;
+        if (path.size() <= 1) return;
         auto put = [&](int slot, const Color& c) {
             out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
         };
@@ -429,10 +433,11 @@ private:
             put(kGrad + d, e.gradient);
             put(kSplat + d, 0.25f * e.offset);
         }
-        put(kDirect, path.v[0].emitted);
+        put(kDirect, terms.v[1].emitted);
         // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
         float* aux = out + 3 * kAux;
-        for (const PathVertex& v : path.v) {
+        for (size_t k = 1; k < path.size(); ++k) {
+            const Vertex& v = path.v[k];
             if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
                 &v != &path.v.back())
                 continue;
@@ -441,14 +446,14 @@ private:
             aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
             break;
         }
-        aux[6] = path.v[0].si.t;
+        aux[6] = path.v[1].si.t;
     }
 
     std::unique_ptr<Shift> shift_;
     std::string shift_name_;
     ShiftConfig config_;
     GradientMis mis_;
-    TraceOptions trace_;
+    WalkOptions trace_;
     bool primal_both_ = true;
     int batch_ = kMaxBatch;
     bool solve_l1_ = true, solve_l2_ = true;

@@ -1,20 +1,23 @@
 // Unidirectional path tracing with next-event estimation and multiple
-// importance sampling (power heuristic) between light and BSDF sampling.
+// importance sampling (power heuristic) between light and BSDF sampling, on
+// the path-space core: the camera subpath's walk (path/walk.h) and, at each
+// of its vertices, the two connections of a path tracer (connection.h): the
+// emitter the walk hit (s = 0) and the vertex's light sample (s = 1).
 #include <tuple>
 
 #include "gdr/core/in_place.h"
-#include "gdr/path/vertex.h"
+#include "gdr/path/connection.h"
 #include "gdr/path/dims.h"
+#include "gdr/path/walk.h"
 #include "gdr/integrators/pt.h"
 #include "gdr/integrators/tiled.h"
-#include "pt_steps.h"
 
 namespace gdr {
 
 namespace {
 
-PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,
-                           const SurfaceInteraction* first, bool first_hit);
+PathResult trace_path_from(const Scene& scene, const Ray& ray, const Sampler& sampler, const PathOptions& opt,
+                           Subpath& path, bool first_hit);
 
 // Most camera rays traced as one Embree packet.
 constexpr int kPacket = 8;
@@ -52,9 +55,11 @@ protected:
         // A lone ray goes as a packet too: the packet kernel's last-bit
         // rounding differs from the single-ray kernel's, so every camera ray
         // takes the same kernel and images do not depend on the batch size.
+        // Each job's camera ray is traced straight into the first hit record
+        // of its subpath.
+        thread_local Subpath paths[kPacket];
         Ray ray[kPacket];
-        SurfaceInteraction si[kPacket];
-        SurfaceInteraction* const sip[kPacket] = {si, si + 1, si + 2, si + 3, si + 4, si + 5, si + 6, si + 7};
+        SurfaceInteraction* sip[kPacket];
         bool active[kPacket], hit[kPacket];
         const PathOptions opt{max_depth_, rr_depth_, nee_};
         for (int base = 0; base < n; base += kPacket) {
@@ -63,21 +68,23 @@ protected:
                 active[j] = j < m;
                 if (!active[j]) {
                     ray[j] = ray[0];  // a packet's idle lanes are still read
+                    sip[j] = sip[0];
                     continue;
                 }
                 Sampler& sampler = jobs[base + j].sampler;
                 sampler.set_dimension(dims::kFilm);
                 const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
                 assign_in_place(ray[j], [&] { return scene.camera().generate_ray(film); });
-                // The first vertex's light prefetch, which the kernel
-                // otherwise does a vertex ahead: the packet's traversal hides the load.
+                sip[j] = begin_camera_subpath(scene, ray[j], paths[j]);
+                // The first vertex's light prefetch, which the walk otherwise
+                // does a vertex ahead: the packet's traversal hides the load.
                 if (nee_ && scene.light_prefetch_pays())
                     scene.prefetch_light(sampler.at(dims::vertex(1) + dims::kLightSelect));
             }
             scene.intersect8(ray, active, sip, hit);
             PathResult results[kPacket];
             for (int j = 0; j < m; ++j)
-                results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, &si[j], hit[j]);
+                results[j] = trace_path_from(scene, ray[j], jobs[base + j].sampler, opt, paths[j], hit[j]);
             for (int j = 0; j < m; ++j) {
                 const PathResult& r = results[j];
                 rays += r.rays;
@@ -105,46 +112,57 @@ private:
     int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 
-// trace_path(), optionally from a camera ray already traced: `first` is then
-// its hit record and `first_hit` whether it hit.
-PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt,
-                           const SurfaceInteraction* first, bool first_hit) {
-    PathResult r;
-    detail::PathState st;
-    Vec2 u_sel_next(0.f);  // the next vertex's emitter and lobe numbers
-    for (int depth = 1;; ++depth) {
-        SurfaceInteraction traced;
-        ++r.rays;
-        // Light samples are known before their vertices are: the next
-        // vertex's alias-table bucket starts loading now, so that its cache
-        // miss overlaps this traversal and the next (the first vertex's,
-        // unless sample_batch() did, right before its cast).
-        // The emitter and lobe numbers are one pair (one hash): both are drawn a vertex ahead.
-        const Vec2 u_sel = depth == 1 ? sampler.at2(dims::vertex(depth) + dims::kLightSelect) : u_sel_next;
-        static_assert(dims::kBsdfLobe == dims::kLightSelect + 1);
-        u_sel_next = sampler.at2(dims::vertex(depth + 1) + dims::kLightSelect);
-        if (opt.nee && scene.light_prefetch_pays()) {
-            if (depth == 1 && !first) scene.prefetch_light(u_sel.x);
-            scene.prefetch_light(u_sel_next.x);
+// The path tracer's two connections at each vertex of the camera subpath,
+// as the walk finds it.
+struct Connect {
+    const Scene& scene;
+    const Sampler& sampler;
+    const PathOptions& opt;
+    PathResult& r;
+    bool aux_done = false;  ///< Albedo and normal are recorded (at the first non-delta vertex).
+    void operator()(Subpath& path) {
+        static const Subpath kNoLight;  // s <= 1 reads no light subpath: s = 1 samples its own light
+        const StrategySet set{MisHeuristic::Power, opt.nee ? 1 : 0};
+        const int t = path.size();
+        const Vertex& x = path.v.back();
+        if (t == 2) r.depth = x.si.t;
+        // Auxiliary data at the first vertex that is not a pure delta surface.
+        if (!aux_done && !x.si.material->pure_delta) {
+            r.albedo = x.si.material->bsdf->albedo(x.si.uv);
+            r.normal = x.si.frame.n;
+            aux_done = true;
         }
-        if (depth == 1 && first) {
-            if (!first_hit) break;
-        } else if (!scene.intersect(ray, traced)) {
-            break;
+        if (x.si.is_emitter()) {
+            const ConnectionResult e = connect(scene, kNoLight, path, {0, t}, sampler, set, true, r.rays);
+            if (!is_black(e.value)) r.radiance += e.value * float(e.weight);
         }
-        const SurfaceInteraction& si = depth == 1 && first ? *first : traced;
-        if (depth == 1) r.depth = si.t;
-        const Vec3 wo_world = -ray.d;
-        detail::add_emission(scene, si, wo_world, st, opt, r);
-        if (opt.max_depth > 0 && depth >= opt.max_depth) break;
-        if (!detail::scatter(scene, si, wo_world, sampler, opt, depth, u_sel, st, r, ray)) break;
+        // A light sample would add a segment beyond max_depth.
+        if (!opt.nee || (opt.max_depth > 0 && t > opt.max_depth)) return;
+        const ConnectionResult l = connect(scene, kNoLight, path, {1, t}, sampler, set, true, r.rays);
+        if (!is_black(l.value)) r.radiance += l.value * float(l.weight);
     }
+};
+
+// trace_path() of a camera ray already traced into the first hit record of
+// `path` (begin_camera_subpath), which hit if `first_hit`.
+PathResult trace_path_from(const Scene& scene, const Ray& ray, const Sampler& sampler, const PathOptions& opt,
+                           Subpath& path, bool first_hit) {
+    PathResult r;
+    // A path tracer's strategies read no reverse densities; the first
+    // vertex's light entry was prefetched before the camera rays' packet.
+    WalkOptions wo{opt.max_depth, opt.rr_depth, false, opt.nee};
+    walk_subpath(scene, ray, Color(1.f), Color(1.f), scene.camera().direction_pdf(ray.d), sampler, wo, path,
+                 Connect{scene, sampler, opt, r}, true, first_hit);
+    r.rays += path.rays;
     return r;
 }
 }  // namespace
 
 PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt) {
-    return trace_path_from(scene, ray, sampler, opt, nullptr, false);
+    thread_local Subpath path;
+    SurfaceInteraction* first = begin_camera_subpath(scene, ray, path);
+    const bool hit = scene.intersect(ray, *first);
+    return trace_path_from(scene, ray, sampler, opt, path, hit);
 }
 
 void register_pt(Registry<Integrator>& r) {

@@ -13,21 +13,14 @@ namespace {
 // that can sample the path at all (Veach 1997, section 10.3.5).
 double remap0(double p) { return p != 0.0 ? p : 1.0; }
 
-// strategy_weight() of (s, t), s <= 1, among the strategies s = 0 and s = 1
-// only: the other strategy's density over this one's is the light's origin
-// density of the path's last vertex over the camera walk's density of it,
-// or the inverse (for s = 1, `light` is the sampled light point and nee_pdf_w
-// the BSDF's density of its direction).
-double unidirectional_weight(const Scene& scene, const Subpath& camera, Connection c, const Vertex* q,
-                             double nee_pdf_w, MisHeuristic h) {
-    if (c.s == 0) {
-        // The alternative, s = 1 at the previous vertex, exists unless that vertex scattered by a delta lobe.
-        const Vertex& end = camera.v[c.t - 1];
-        if (camera.v[c.t - 2].delta) return 1.0;
-        return mis_weight(h, 1.0, {1.0, remap0(pdf_light_origin(scene, end)) / remap0(end.pdf_fwd)});
-    }
-    const double fwd = area_density(nee_pdf_w, camera.v[c.t - 1], *q);
-    return mis_weight(h, 1.0, {1.0, remap0(fwd) / remap0(q->pdf_fwd)});
+// strategy_weight() of the emitter hit (0, t) among a path tracer's two
+// strategies: the other one, s = 1 at the previous vertex, exists unless
+// that vertex scattered by a delta lobe; its density over this one's is the
+// light's origin density of the path's last vertex over the camera walk's.
+double emitter_hit_weight(const Scene& scene, const Subpath& camera, int t, MisHeuristic h) {
+    const Vertex& end = camera.v[t - 1];
+    if (camera.v[t - 2].delta) return 1.0;
+    return mis_weight(h, 1.0, {1.0, remap0(pdf_light_origin(scene, end)) / remap0(end.pdf_fwd)});
 }
 
 }  // namespace
@@ -99,7 +92,6 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
     const Vertex& pt = camera.v[t - 1];
     std::optional<Vertex> sampled;  // s = 1: the light point sampled from pt (a record is large: built only then)
     const Vertex* q = nullptr;
-    double nee_pdf_w = 0.0;  // s = 1: pt's BSDF density of the direction to the light point (1/sr)
     if (s == 0) {
         // The camera walk hit an emitter.
         if (pt.type != VertexType::Surface || !pt.si.is_emitter()) return r;
@@ -121,17 +113,20 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         r.value = q->beta * f * (abs_cos_shading(*q, w) * we * cos_eye / (dist * dist));
         if (is_black(r.value)) return r;
         ++rays;
-        if (!scene.visible(q->si.p, q->si.ng, eye.si.p, Vec3(0.f))) return ConnectionResult{};
+        if (!scene.visible(q->si.p, q->si.ng, eye.si.p, Vec3(0.f))) {
+            r = {};  // every exit returns r, so it is built in the caller's slot
+            return r;
+        }
         r.splat = true;
     } else if (s == 1) {
         // Next-event estimation with the vertex's own light numbers.
         if (!pt.connectible() || !scene.has_lights()) return r;
-        const uint32_t b = dims::vertex(t - 1);
         const LightSample ls =
-            scene.sample_emitter_point(camera_sampler.at(b + dims::kLightSelect), camera_sampler.at2(b + dims::kLightPoint));
+            scene.sample_emitter_point(pt.u_light, camera_sampler.at2(dims::vertex(t - 1) + dims::kLightPoint));
         const Vec3 d = ls.p - pt.si.p;
-        const float dist = glm::length(d);
-        if (!(dist > 0.f) || !(ls.pdf_a > 0.f)) return r;
+        const float dist2 = glm::dot(d, d);
+        if (!(dist2 > 0.f) || !(ls.pdf_a > 0.f)) return r;
+        const float dist = std::sqrt(dist2);
         const Vec3 w = d / dist;
         const float cos_light = glm::dot(ls.n, -w);
         if (!(cos_light > 0.f)) return r;
@@ -140,11 +135,21 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         const SurfaceInteraction& si = pt.si;
         const BsdfEval fe = si.material->bsdf->eval_pdf(si.frame.to_local(pt.wo), si.frame.to_local(w), si.uv);
         if (is_black(fe.f)) return r;
-        nee_pdf_w = fe.pdf;
-        r.value = pt.beta * fe.f * ls.radiance * (abs_cos_shading(pt, w) * cos_light / (dist * dist * ls.pdf_a));
+        r.value = pt.beta * fe.f * ls.radiance * (abs_cos_shading(pt, w) * cos_light / (dist2 * ls.pdf_a));
         if (is_black(r.value)) return r;
         ++rays;
-        if (!scene.visible(pt.si.p, pt.si.ng, ls.p, ls.n)) return ConnectionResult{};
+        if (!scene.visible(pt.si.p, pt.si.ng, ls.p, ls.n)) {
+            r = {};  // every exit returns r, so it is built in the caller's slot
+            return r;
+        }
+        if (!want_weight) return r;
+        if (set.max_s == 1) {
+            // A path tracer's two strategies: BSDF sampling's density of the
+            // light point against light sampling's, both per unit area there.
+            const double fwd = pdf_w_to_a(double(fe.pdf), double(dist), double(cos_light));
+            r.weight = mis_weight(set.heuristic, 1.0, {1.0, remap0(fwd) / remap0(double(ls.pdf_a))});
+            return r;
+        }
         sampled.emplace();
         sampled->type = VertexType::Light;
         sampled->si.p = ls.p, sampled->si.ng = ls.n, sampled->si.frame = Frame(ls.n), sampled->si.prim = ls.prim;
@@ -167,16 +172,22 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         r.value = q->beta * fq * fp * pt.beta * g;
         if (is_black(r.value)) return r;
         ++rays;
-        if (!scene.visible(q->si.p, q->si.ng, pt.si.p, pt.si.ng)) return ConnectionResult{};
+        if (!scene.visible(q->si.p, q->si.ng, pt.si.p, pt.si.ng)) {
+            r = {};  // every exit returns r, so it is built in the caller's slot
+            return r;
+        }
     }
-    if (is_black(r.value)) return ConnectionResult{};
+    if (is_black(r.value)) {
+            r = {};  // every exit returns r, so it is built in the caller's slot
+            return r;
+        }
     if (want_weight) {
         if (s + t == 2 || set.max_s == 0) {
             r.weight = 1.0;
         } else if (set.max_s == 1) {
             // A path tracer's two strategies: the weight needs only the
             // last vertex's two densities, not the whole path's.
-            r.weight = unidirectional_weight(scene, camera, c, q, nee_pdf_w, set.heuristic);
+            r.weight = emitter_hit_weight(scene, camera, t, set.heuristic);  // s = 1 returned above
         } else {
             thread_local PathDensities d;
             connection_densities(scene, light, camera, c, q, d);

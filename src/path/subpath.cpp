@@ -1,81 +1,13 @@
 #include "gdr/path/subpath.h"
 
+#include "gdr/path/walk.h"
+
 #include "gdr/path/vertex.h"
 #include "gdr/path/dims.h"
 #include "gdr/scene/warp.h"
 
 namespace gdr {
 
-namespace {
-
-// pbrt's and Veach's shading-normal correction of importance transport:
-// |wo.ns| |wi.ng| / (|wo.ng| |wi.ns|), so that light subpaths see the
-// adjoint of the BSDF the camera side sees through shading normals.
-float shading_correction(const SurfaceInteraction& si, const Vec3& wo, const Vec3& wi, TransportMode mode) {
-    if (mode == TransportMode::Radiance) return 1.f;
-    const float num = std::abs(glm::dot(wo, si.frame.n)) * std::abs(glm::dot(wi, si.ng));
-    const float den = std::abs(glm::dot(wo, si.ng)) * std::abs(glm::dot(wi, si.frame.n));
-    return den > 0.f ? num / den : 0.f;
-}
-
-// Extends `path` from its last vertex along `ray`, whose direction that
-// vertex sampled with solid-angle density pdf_w; `beta` is the throughput
-// the ray carries and `rel` its part after the endpoint (for roulette).
-// Vertex k draws from block(k).
-// `first`, if given, is the hit record of `ray`, already traced (first_hit: it hit).
-template <class Block>
-void walk(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, const Sampler& sampler,
-          const WalkOptions& opt, Block block, Subpath& path, const SurfaceInteraction* first = nullptr,
-          bool first_hit = false) {
-    for (int k = 1; opt.max_vertices < 0 || k <= opt.max_vertices; ++k) {
-        // The vertex is built in place: a record is a few hundred bytes.
-        Vertex& x = path.v.emplace_back();
-        ++path.rays;
-        if (k == 1 && first) {
-            x.si = *first;
-        }
-        if (k == 1 && first ? !first_hit : !scene.intersect(ray, x.si)) {
-            path.v.pop_back();
-            return;
-        }
-        x.type = VertexType::Surface;
-        x.wo = -ray.d;
-        x.beta = beta;
-        x.pdf_fwd = area_density(pdf_w, path.v[path.v.size() - 2], x);
-        if (opt.max_vertices >= 0 && k == opt.max_vertices) return;
-        const SurfaceInteraction& si = x.si;
-        if (si.material->black) return;
-        const Bsdf& bsdf = *si.material->bsdf;
-        const Vec3 wo = si.frame.to_local(x.wo);
-        const uint32_t b = block(k);
-        x.u_lobe = sampler.at(b + dims::kBsdfLobe);
-        x.u_dir = sampler.at2(b + dims::kBsdfDir);
-        const auto bs = bsdf.sample(wo, si.uv, x.u_lobe, x.u_dir);
-        if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) return;
-        const Vec3 wi_world = si.frame.to_world(bs->wi);
-        x.lobe = bs->lobe, x.roughness = bs->roughness, x.delta = bs->is_delta();
-        const Color step = bs->f * (transport_factor(bsdf, wo, bs->wi, path.mode) * abs_cos_theta(bs->wi) / bs->pdf *
-                                    shading_correction(si, x.wo, wi_world, path.mode));
-        beta *= step, rel *= step;
-        // A delta lobe has no density in the area measure: Veach's remapping
-        // (connection.cpp) treats its zero densities as 1 and skips the
-        // strategies that would connect there.
-        pdf_w = x.delta ? 0.0 : double(bs->pdf);
-        if (opt.reverse_densities) {
-            const double pdf_rev_w = x.delta ? 0.0 : double(bsdf.pdf(bs->wi, wo, si.uv));
-            path.v[path.v.size() - 2].pdf_rev = area_density(pdf_rev_w, x, path.v[path.v.size() - 2]);
-        }
-        if (k >= opt.rr_depth) {
-            const float q = roulette_survival(rel);
-            if (sampler.at(b + dims::kRoulette) >= q) return;
-            beta /= q, rel /= q;
-        }
-        if (is_black(beta)) return;
-        ray = spawn_ray(si, wi_world);
-    }
-}
-
-}  // namespace
 
 double area_density(double pdf_w, const Vertex& from, const Vertex& to) {
     const Vec3d d = Vec3d(to.si.p) - Vec3d(from.si.p);
@@ -91,13 +23,12 @@ void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& s
     trace_camera_subpath(scene, scene.camera().generate_ray(film), sampler, opt, path);
 }
 
-void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sampler, const WalkOptions& opt,
-                          Subpath& path, const SurfaceInteraction* first, bool first_hit) {
+SurfaceInteraction* begin_camera_subpath(const Scene& scene, const Ray& ray, Subpath& path) {
     path.mode = TransportMode::Radiance;
     path.v.clear();
     path.rays = 0;
     const Camera& cam = scene.camera();
-    Vertex c;
+    Vertex& c = path.v.emplace_back();
     c.type = VertexType::Camera;
     c.si.p = ray.o;
     c.si.ng = cam.forward();
@@ -106,9 +37,16 @@ void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sam
     // the pixel and the measurement is the pixel's mean.
     c.beta = Color(1.f);
     c.pdf_fwd = 1.0;
-    path.v.push_back(c);
-    walk(scene, ray, Color(1.f), Color(1.f), cam.direction_pdf(ray.d), sampler, opt,
-         [](int k) { return dims::vertex(k); }, path, first, first_hit);
+    return &path.v.emplace_back().si;
+}
+
+void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sampler, const WalkOptions& opt,
+                          Subpath& path, const SurfaceInteraction* first, bool first_hit) {
+    SurfaceInteraction* slot = begin_camera_subpath(scene, ray, path);
+    if (first) *slot = *first;
+    else first_hit = scene.intersect(ray, *slot);
+    walk_subpath(scene, ray, Color(1.f), Color(1.f), scene.camera().direction_pdf(ray.d), sampler, opt, path,
+                 RecordVertices{}, true, first_hit);
 }
 
 void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkOptions& opt, Subpath& path) {
@@ -135,8 +73,8 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
     const Vec3 w = l.si.frame.to_world(local);
     const Ray ray{offset_ray_origin(ls.p, ls.n, w), w, 0.f, kInf};
     // |cos| / pdf of a cosine-distributed direction is pi.
-    walk(scene, ray, l.beta * (abs_cos_theta(local) / pdf_dir), Color(1.f), pdf_dir, sampler, opt,
-         [](int k) { return dims::light_vertex(k); }, path);
+    walk_subpath(scene, ray, l.beta * (abs_cos_theta(local) / pdf_dir), Color(1.f), pdf_dir, sampler, opt, path,
+                 RecordVertices{});
 }
 
 double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next) {

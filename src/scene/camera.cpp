@@ -49,9 +49,12 @@ float Camera::importance(const Vec3& w, Vec2& film) const {
 }
 
 float Camera::direction_pdf(const Vec3& w) const {
-    Vec2 film;
-    const float we = importance(w, film);
-    return we * glm::dot(w, forward_);
+    // importance() times the cosine, without the film position it also
+    // finds: every camera ray's walk asks for this density.
+    const float c = glm::dot(w, forward_);
+    if (!(c > 0.f) || std::abs(glm::dot(w, right_)) > c * tan_half_x_ || std::abs(glm::dot(w, up_)) > c * tan_half_y_)
+        return 0.f;
+    return 1.f / (film_area_at_unit_distance() * c * c * c);
 }
 
 }  // namespace gdr

@@ -62,8 +62,8 @@ struct DeferredVisibility {
 // True if the offset vertex y, sharing the base vertex x, scatters with x's
 // BSDF values for any wi: the BSDF depends on wo only through its side, and
 // both arrive on the same side.
-inline bool same_side_values(const OffsetVertex& y, const PathVertex& x) {
-    return y.si.material->wo_side_only && y.wo.z * x.wo.z > 0.f;
+inline bool same_side_values(const OffsetVertex& y, const Vertex& x) {
+    return y.si.material->wo_side_only && y.wo.z * glm::dot(x.wo, x.si.frame.n) > 0.f;
 }
 
 // The base's light sample at x_k, seen from the offset vertex y_k (of
@@ -71,27 +71,28 @@ inline bool same_side_values(const OffsetVertex& y, const PathVertex& x) {
 void shift_light_connection(const Scene& scene, const ShiftConfig& config, const CameraPath& base, size_t k,
                             OffsetPath& path, DeferredVisibility* defer) {
     OffsetRecord& rec = path.v[k];
-    const PathVertex& x = base.v[k];
-    if (!x.nee.valid) return;
-    const LightSample& ls = x.nee.light;
+    const LightConnection& nee = base.nee[k];
+    if (!nee.valid) return;
+    const LightSample& ls = nee.light;
     const OffsetVertex& y = rec.y;
     const Bsdf& bsdf = *y.si.material->bsdf;
     if (y.on_base) {
         // Same vertex, same light segment (measured once for the base): only
         // the BSDF's incoming direction differs.
-        if (!(x.nee.dist > 0.f)) return;
-        const Vec3& wi = x.nee.wi;
+        if (!(nee.dist > 0.f)) return;
+        const Vec3& wi = nee.wi;
         // Arriving on the base's side of a BSDF that sees only that side, the
         // offset's values are the base's.
-        const BsdfEval fe = same_side_values(y, x) ? BsdfEval{x.nee.f, x.nee.pdf_bsdf} : bsdf.eval_pdf(y.wo, wi, y.si.uv);
+        const BsdfEval fe =
+            same_side_values(y, base.v[k]) ? BsdfEval{nee.f, nee.pdf_bsdf} : bsdf.eval_pdf(y.wo, wi, y.si.uv);
         rec.nee = true;
         rec.nee_f = fe.f;
         rec.nee_cos = abs_cos_theta(wi);
         rec.nee_jacobian = 1.0;
-        rec.nee_pdf_light_w = x.nee.pdf_w;
+        rec.nee_pdf_light_w = nee.pdf_w;
         rec.nee_pdf_bsdf = fe.pdf;
-        if (x.nee.tested) {
-            rec.nee_radiance = x.nee.visible ? ls.radiance : Color(0.f);
+        if (nee.tested) {
+            rec.nee_radiance = nee.visible ? ls.radiance : Color(0.f);
         } else if (!is_black(ls.radiance) && !is_black(fe.f)) {
             // The base's own value was 0, so it left the segment untraced.
             ++path.rays;
@@ -105,7 +106,7 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     // so that the inverse shift is defined too.
     const ShiftStepInput in{scene, config, base, k, y};
     if (!shift::base_connectable(in, k) || !shift::offset_connectable(in)) return;
-    if (!(x.nee.pdf_w > 0.0)) return;  // the base cannot sample this light point (or sits on it)
+    if (!(nee.pdf_w > 0.0)) return;  // the base cannot sample this light point (or sits on it)
     const Vec3d pz(ls.p), nz(ls.n);
     const Vec3d dy = pz - Vec3d(y.si.p);
     const double ly2 = glm::dot(dy, dy);
@@ -137,7 +138,7 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     rec.nee_f = fe.f;
     rec.nee_pdf_bsdf = fe.pdf;
     rec.nee_pdf_light_w = pdf_y;
-    rec.nee_jacobian = x.nee.pdf_w * inv_pdf_y;
+    rec.nee_jacobian = nee.pdf_w * inv_pdf_y;
     const Material& light_mat = scene.materials()[scene.mesh().material_ids[ls.prim]];
     const Color le = cos_zy > 0.0 ? light_mat.emission : Color(0.f);
     if (!is_black(le) && !is_black(rec.nee_f)) {
@@ -148,7 +149,7 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
 }
 
 // Makes `v` the offset vertex that coincides with base vertex x_{k+1}, entered from `from`.
-void set_on_base(OffsetVertex& v, const PathVertex& next, const Vec3& from) {
+void set_on_base(OffsetVertex& v, const Vertex& next, const Vec3& from) {
     v.si = next.si;
     v.on_base = true;
     const Vec3 w = glm::normalize(from - next.si.p);
@@ -171,13 +172,14 @@ void reset(OffsetPath& out) {
     out.length = 0;
 }
 
-// For a reset `out`: makes the record of the offset's first vertex and sets
-// `ray` to the camera ray through film + pixel_offset that reaches it;
-// returns where that ray's hit goes.
+// For a reset `out`: makes the records of the offset's camera vertex (the
+// base's: one pinhole) and of its first hit, and sets `ray` to the camera ray
+// through film + pixel_offset that reaches it; returns where that ray's hit goes.
 SurfaceInteraction* start_offset(const Scene& scene, const Vec2& film, const Vec2& pixel_offset, OffsetPath& out,
                                  Ray& ray) {
     assign_in_place(ray, [&] { return scene.camera().generate_ray(film + pixel_offset); });
     out.rays = 1;
+    out.v.emplace_back().y.si.p = ray.o;
     return &out.v.emplace_back().y.si;
 }
 
@@ -187,11 +189,11 @@ SurfaceInteraction* start_offset(const Scene& scene, const Vec2& film, const Vec
 // they are resolved.
 void complete_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                      const Ray& ray, bool hit, OffsetPath& out, DeferredVisibility* defer = nullptr) {
-    if (hit && base.size() > 0) {
+    if (hit && base.size() > 1) {
         out.v.reserve(base.size());
-        OffsetRecord& r0 = out.v[0];
-        r0.y.wo = r0.y.si.frame.to_local(-ray.d);
-        r0.y.emitted = r0.y.si.is_emitter() ? r0.y.si.emitted(-ray.d) : Color(0.f);
+        OffsetRecord& r1 = out.v[1];
+        r1.y.wo = r1.y.si.frame.to_local(-ray.d);
+        r1.y.emitted = r1.y.si.is_emitter() ? r1.y.si.emitted(-ray.d) : Color(0.f);
         walk_offset(scene, shift, config, base, out, defer);
     } else {
         out.v.clear();
@@ -217,7 +219,7 @@ void complete_offsets4(const Scene& scene, const Shift& shift, const ShiftConfig
 void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                        const Vec2& pixel_offset, OffsetPath& out) {
     reset(out);
-    if (base.size() == 0) return;
+    if (base.size() <= 1) return;
     Ray ray;
     SurfaceInteraction* si = start_offset(scene, base.film, pixel_offset, out, ray);
     complete_offset(scene, shift, config, base, ray, scene.intersect(ray, *si), out);
@@ -230,7 +232,7 @@ void shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConf
     bool traced[4], hit[4];
     for (int i = 0; i < 4; ++i) {
         reset(out[i]);
-        traced[i] = active[i] && base.size() > 0;
+        traced[i] = active[i] && base.size() > 1;
         si[i] = traced[i] ? start_offset(scene, base.film, pixel_offsets[i], out[i], rays[i]) : nullptr;
     }
     scene.intersect4(rays, traced, si, hit);  // the hits are written into the first records
@@ -294,7 +296,7 @@ void shift_from_camera_packet(const Scene& scene, const Shift& shift, const Shif
 }
 
 void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config,
-                                   const Vec2& film, Sampler& sampler, const TraceOptions& opt, CameraPath& base,
+                                   const Vec2& film, const Sampler& sampler, const WalkOptions& opt, CameraPath& base,
                                    const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]) {
     CameraPacket packet;
     trace_camera_packet(scene, film, base, pixel_offsets, active, out, packet);
@@ -304,15 +306,15 @@ void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const
 
 namespace {
 
-// Continues an offset path whose first vertex out.v[0] is set.
+// Continues an offset path whose first hit out.v[1] is set.
 void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
                  OffsetPath& out, DeferredVisibility* defer) {
-    for (size_t k = 0; k < base.size(); ++k) {
+    for (size_t k = 1; k < base.size(); ++k) {
         shift_light_connection(scene, config, base, k, out, defer);
         OffsetRecord& rec = out.v[k];
-        const PathVertex& x = base.v[k];
-        if (!x.scattered || k + 1 >= base.size()) return;
-        const PathVertex& next = base.v[k + 1];
+        const Vertex& x = base.v[k];
+        if (!x.scattered() || k + 1 >= base.size()) return;
+        const Vertex& next = base.v[k + 1];
         const OffsetVertex& y = rec.y;
         ShiftStep& s = rec.step;
         if (y.on_base) {

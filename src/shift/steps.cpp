@@ -11,8 +11,8 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     // in the caller's slot: a local copied out on return was written field by
     // field and reloaded 16 bytes at a time, stalling store forwarding.
     ShiftStep s;
-    const PathVertex& x = in.base.v[in.k];
-    const PathVertex& next = in.base.v[in.k + 1];
+    const Vertex& x = in.base.v[in.k];
+    const Vertex& next = in.base.v[in.k + 1];
     const SurfaceInteraction& y = in.y.si;
     // Distances and cosines in double: the Jacobian is a ratio of nearly equal quantities.
     const Vec3d pn(next.si.p), ng(next.si.ng);
@@ -46,8 +46,8 @@ ShiftStep reconnect(const ShiftStepInput& in) {
 }
 
 ShiftStep half_vector(const ShiftStepInput& in) {
-    const PathVertex& x = in.base.v[in.k];
-    const Vec3& wo_x = x.wo;
+    const Vertex& x = in.base.v[in.k];
+    const Vec3 wo_x = x.si.frame.to_local(x.wo);
     const Vec3& wo_y = in.y.wo;
     const Bsdf& bsdf = *in.y.si.material->bsdf;
     // Both paths must arrive from the same side (for dielectrics: the same medium).
@@ -107,7 +107,7 @@ ShiftStep half_vector(const ShiftStepInput& in) {
 }
 
 ShiftStep replay(const ShiftStepInput& in) {
-    const PathVertex& x = in.base.v[in.k];
+    const Vertex& x = in.base.v[in.k];
     const Bsdf& bsdf = *in.y.si.material->bsdf;
     const auto bs = bsdf.sample(in.y.wo, in.y.si.uv, x.u_lobe, x.u_dir);
     if (!bs || !(bs->pdf > 0.f) || is_black(bs->f) || bs->is_delta() != x.bs.is_delta()) return fail();

@@ -23,11 +23,13 @@ double spanned_area(const Vec3d w[4]) { return glm::length(glm::cross(w[0] - w[1
 std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, const ShiftConfig& config,
                                        const CameraPath& x, size_t k, const OffsetVertex& y, const ShiftStep& ref,
                                        float eps) {
-    const PathVertex& X = x.v[k];
+    const Vertex& X = x.v[k];
     const Bsdf& bsdf = *X.si.material->bsdf;
+    const Vec3 wo = X.si.frame.to_local(X.wo);
     CameraPath xp;
     xp.film = x.film;
     xp.v.assign(x.v.begin(), x.v.begin() + long(std::min(x.size(), k + 2)));
+    xp.nee.assign(x.nee.begin(), x.nee.begin() + long(std::min(x.size(), k + 2)));
     Vec3d wx[4], wy[4];
     const Vec2 du[4] = {{eps, 0.f}, {-eps, 0.f}, {0.f, eps}, {0.f, -eps}};
     const Vec3& p1 = x.v[k + 1].si.p;
@@ -35,7 +37,7 @@ std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, c
     for (int i = 0; i < 4; ++i) {
         const Vec2 u = X.u_dir + du[i];
         if (u.x <= 0.f || u.y <= 0.f || u.x >= 1.f || u.y >= 1.f) return std::nullopt;
-        const auto bs = bsdf.sample(X.wo, X.si.uv, X.u_lobe, u);
+        const auto bs = bsdf.sample(wo, X.si.uv, X.u_lobe, u);
         if (!bs || bs->lobe != X.bs.lobe || !(bs->pdf > 0.f)) return std::nullopt;
         xp.v[k].bs = *bs;
         xp.v[k].u_dir = u;
@@ -44,7 +46,7 @@ std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, c
         if (!scene.intersect(spawn_ray(X.si, dir), hit) || hit.prim != x.v[k + 1].si.prim) return std::nullopt;
         moved = std::max(moved, glm::length(hit.p - p1));
         xp.v[k + 1].si = hit;
-        xp.v[k + 1].wo = hit.frame.to_local(-dir);
+        xp.v[k + 1].wo = -dir;
         const ShiftStep s = shift.step(ShiftStepInput{scene, config, xp, k, y});
         if (s.kind != ref.kind) return std::nullopt;
         wx[i] = Vec3d(dir);
@@ -64,13 +66,13 @@ std::optional<double> fd_step_jacobian(const Scene& scene, const Shift& shift, c
 
 // Finite-difference Jacobian of the shared light point: moves the point in its
 // emitter's tangent plane (in double, independent of how it was sampled).
-std::optional<double> fd_light_jacobian(const PathVertex& X, const OffsetVertex& y, float eps) {
-    const Vec3d p(X.nee.light.p), n(X.nee.light.n), px(X.si.p), py(y.si.p);
+std::optional<double> fd_light_jacobian(const Vertex& X, const LightConnection& nee, const OffsetVertex& y, float eps) {
+    const Vec3d p(nee.light.p), n(nee.light.n), px(X.si.p), py(y.si.p);
     // Seen edge-on (a vertex in the emitter's own plane), both the density
     // and its differences are float rounding.
     for (const Vec3d& q : {px, py})
         if (!(std::abs(glm::dot(n, glm::normalize(q - p))) > 1e-4)) return std::nullopt;
-    const Frame f(X.nee.light.n);
+    const Frame f(nee.light.n);
     const double h = double(eps) * glm::length(p - px);
     const Vec3d d[4] = {h * Vec3d(f.s), -h * Vec3d(f.s), h * Vec3d(f.t), -h * Vec3d(f.t)};
     Vec3d wx[4], wy[4];
@@ -96,19 +98,22 @@ std::optional<double> richardson(float eps, F&& fd) {
 CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& offset) {
     CameraPath p;
     p.film = x.film + offset;
-    for (size_t k = 0; k < y.size(); ++k) {
-        PathVertex v = x.v[k];
+    p.v.push_back(x.v[0]);  // the same pinhole
+    p.nee.push_back(x.nee[0]);
+    for (size_t k = 1; k < y.size(); ++k) {
+        Vertex v = x.v[k];
+        LightConnection nee = x.nee[k];
         if (y.merged(k)) {
             p.v.push_back(v);  // the shared suffix is the base's own
+            p.nee.push_back(nee);
             continue;
         }
         const OffsetRecord& r = y.v[k];
         v.si = r.y.si;
-        v.wo = r.y.wo;
-        if (v.nee.valid) v.nee.measure(v.si, v.wo);  // the same light point, seen from y_k
-        v.emitted = r.y.emitted;
-        v.scattered = k + 1 < y.size();
-        if (v.scattered) {
+        v.wo = r.y.si.frame.to_world(r.y.wo);
+        if (nee.valid) nee.measure(v.si, r.y.wo);  // the same light point, seen from y_k
+        v.bs = BsdfSample{};
+        if (k + 1 < y.size()) {
             const ShiftStep& s = r.step;
             const bool reflect = s.wi.z * r.y.wo.z > 0.f;
             v.bs.wi = s.wi;
@@ -117,8 +122,10 @@ CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& of
             v.bs.eta = reflect ? 1.f : x.v[k].bs.eta;
             v.bs.lobe = (reflect ? kReflection : kTransmission) |
                         (s.delta ? uint32_t(kSpecular) : (x.v[k].bs.lobe & (kDiffuse | kGlossy)));
+            v.delta = s.delta;
         }
         p.v.push_back(v);
+        p.nee.push_back(nee);
     }
     return p;
 }
@@ -135,8 +142,9 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
     std::vector<double> errors;
     CameraPath x;
     OffsetPath y, back;
-    TraceOptions topt;
-    topt.max_depth = o.max_depth;
+    WalkOptions topt;
+    topt.max_vertices = o.max_depth;
+    topt.reverse_densities = false;
     topt.rr_depth = 1 << 20;  // roulette changes nothing a shift does; keep paths long
     for (int i = 0; i < o.paths; ++i) {
         Sampler pick(SampleKey{o.seed ^ 0x5eedull, 0, 0, uint32_t(i)});
@@ -146,14 +154,14 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
         s.set_dimension(dims::kFilm);
         trace_camera_path(scene, Vec2(float(px), float(py)) + s.next2d(), s, topt, x);
         ++rep.sampled;
-        if (x.size() < 2) continue;
+        if (x.size() < 3) continue;  // the camera and at least two hits
         ++rep.base_paths;
         shift_camera_path(scene, shift, config, x, right, y);
 
-        for (size_t k = 0; k + 1 < y.size() && k < y.v.size(); ++k) {
+        for (size_t k = 1; k + 1 < y.size() && k < y.v.size(); ++k) {
             const OffsetRecord& r = y.v[k];
-            if (r.nee && !r.y.on_base && x.v[k].nee.valid && r.nee_jacobian > 0.0) {
-                if (auto j = richardson(o.fd_step, [&](float e) { return fd_light_jacobian(x.v[k], r.y, e); })) {
+            if (r.nee && !r.y.on_base && x.nee[k].valid && r.nee_jacobian > 0.0) {
+                if (auto j = richardson(o.fd_step, [&](float e) { return fd_light_jacobian(x.v[k], x.nee[k], r.y, e); })) {
                     const double e = std::abs(r.nee_jacobian / *j - 1.0);
                     errors.push_back(e);
                     rep.jacobian_checked++;
@@ -193,7 +201,7 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
             continue;
         }
         bool same = true;
-        for (size_t k = 0; k < back.v.size(); ++k) same &= glm::length(back.v[k].y.si.p - x.v[k].si.p) <= tol;
+        for (size_t k = 1; k < back.v.size(); ++k) same &= glm::length(back.v[k].y.si.p - x.v[k].si.p) <= tol;
         rep.reverse_ok += same;
     }
     if (!errors.empty()) {

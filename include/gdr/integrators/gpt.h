@@ -19,6 +19,7 @@ struct PairEstimate {
 struct BaseTerms {
     /// The terms of one base vertex x_k.
     struct Vertex {
+        Color emitted{0.f};     ///< Radiance emitted by x_k towards x_{k-1} (W/(m^2 sr)).
         Color emit{0.f};        ///< f(x)/q(x) of the emitter hit at x_k by BSDF sampling at x_{k-1}.
         double emit_pdf_bsdf = 0.0;   ///< BSDF density of that direction at x_{k-1}.
         double emit_pdf_light = 0.0;  ///< Light-sampling density of it (0 if light sampling could not produce it).
@@ -37,7 +38,7 @@ struct BaseTerms {
         /// its own throughput times this, scaled by one MIS factor (see evaluate_pair).
         Color suffix{0.f};
     };
-    std::vector<Vertex> v;  ///< One entry per base vertex.
+    std::vector<Vertex> v;  ///< One entry per base vertex (v[0], the camera's, stays empty).
 };
 
 /// Fills `terms` for base path `x`; `heuristic` weighs the suffix sums.

@@ -38,10 +38,19 @@ struct Vertex {
     double pdf_fwd = 0.0;     ///< Area density (1/m^2) with which its own subpath's walk produced it (0 after a delta lobe).
     double pdf_rev = 0.0;     ///< Area density (1/m^2) with which the other direction's walk would produce it from the next vertex.
     bool delta = false;       ///< The direction sampled here came from a Dirac lobe (so no strategy connects here).
-    uint32_t lobe = 0;        ///< LobeFlags of the lobe sampled here (0 if none was).
-    float roughness = 1.f;    ///< Roughness of that lobe (0 delta, GGX alpha, 1 diffuse).
+    /// The direction sampled here (local wi, f in 1/sr, solid-angle pdf in
+    /// 1/sr, lobe, roughness, eta); pdf 0 if the walk sampled none.
+    BsdfSample bs;
+    float rr_survival = 1.f;  ///< Russian roulette survival probability applied after this vertex (1 if none).
+    float u_light = 0.f;      ///< Random number that picks the emitter of this vertex's s = 1 connection (camera walks).
     float u_lobe = 0.f;       ///< Random number that chose the lobe (for replay).
     Vec2 u_dir{0.f};          ///< Random numbers that chose the direction (for replay).
+    /// Random number of probabilistic vertex classification (0.5 unless
+    /// WalkOptions::classify_numbers), shared by a base path and its offsets.
+    float u_classify = 0.5f;
+
+    /// True if the walk sampled a direction here (bs is valid).
+    bool scattered() const { return bs.pdf > 0.f; }
 
     /// True for a vertex a connection can join: it has a non-delta
     /// scattering (or is an endpoint) and is not a black surface.
@@ -71,6 +80,13 @@ struct WalkOptions {
     /// Record pdf_rev (a BSDF density per vertex): strategies with two or
     /// more light vertices need it; a path tracer's (StrategySet max_s <= 1) do not.
     bool reverse_densities = true;
+    /// Start loading each vertex's emitter-table entry a vertex ahead (camera
+    /// walks, where the scene's light table is large enough for it to pay).
+    bool prefetch_light = true;
+    /// Draw every vertex's classification number (Vertex::u_classify), which
+    /// only probabilistic classification reads; without it the number stays
+    /// 0.5 and a vertex costs one hash less.
+    bool classify_numbers = false;
 };
 
 /// Traces the camera subpath through film point `film` (pixel units): v[0]

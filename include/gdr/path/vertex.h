@@ -1,5 +1,5 @@
-// Path-space building blocks: recorded path vertices, camera paths, and the
-// measure conversions between solid angle and area that shift mappings need.
+// Path-space building blocks: the measure conversions between solid angle
+// and area, roulette, and the record of a light sample that shift mappings share.
 #pragma once
 
 #include <vector>
@@ -74,29 +74,6 @@ struct LightConnection {
         const BsdfEval fe = at.material->bsdf->eval_pdf(wo, wi, at.uv);
         f = fe.f, pdf_bsdf = fe.pdf;
     }
-};
-
-/// One recorded vertex x_k of a camera path (k >= 1; x_0 is the pinhole).
-struct PathVertex {
-    SurfaceInteraction si;      ///< Hit point, frames, material.
-    Vec3 wo{0.f};               ///< Local direction towards x_{k-1}.
-    Color emitted{0.f};         ///< Radiance emitted from x_k towards x_{k-1} (W/(m^2 sr)).
-    LightConnection nee;        ///< Light sample drawn at x_k.
-    bool scattered = false;     ///< A direction to x_{k+1} was sampled (bs valid).
-    BsdfSample bs;              ///< The sampled direction wi (local), f, pdf (solid angle), lobe, eta.
-    float u_lobe = 0.f;         ///< Random number that chose the lobe (for replay).
-    Vec2 u_dir{0.f};            ///< Random numbers that chose the direction (for replay).
-    float u_classify = 0.5f;    ///< Random number of the probabilistic classification (0.5 unless TraceOptions::classify_numbers).
-    float rr_survival = 1.f;    ///< Russian roulette survival probability applied after x_k (1 if none).
-};
-
-/// A camera path: the film position and its vertices x_1..x_n.
-struct CameraPath {
-    Vec2 film{0.f};                  ///< Film position (pixel units) of the primary ray.
-    std::vector<PathVertex> v;       ///< Vertices; v[0] is x_1, the first hit.
-    uint64_t rays = 0;               ///< Rays cast to build it.
-    /// Number of vertices.
-    size_t size() const { return v.size(); }
 };
 
 }  // namespace gdr

@@ -29,8 +29,8 @@ struct OffsetRecord {
 /// shared vertex equals the base's, it is the base from there on: those
 /// vertices get no records (merged_from marks where they begin).
 struct OffsetPath {
-    std::vector<OffsetRecord> v;          ///< Records of the offset's own vertices; v[k] pairs with base.v[k].
-    size_t length = 0;                    ///< Number of offset vertices, shared suffix included.
+    std::vector<OffsetRecord> v;          ///< Records of the offset's own vertices; v[k] pairs with base.v[k] (v[0]: the camera, shared).
+    size_t length = 0;                    ///< Number of offset vertices, camera and shared suffix included (0: no offset path).
     size_t merged_from = size_t(-1);      ///< First depth where y equals x; no records from there on.
     /// Depth k (merged_from - 1) at which y reconnected onto x_k and takes
     /// x_k's BSDF values for its light sample and its scattering, because
@@ -94,7 +94,7 @@ void shift_from_camera_packet(const Scene& scene, const Shift& shift, const Shif
 /// packet's rounding. An offset whose base is empty (its camera ray missed) is
 /// left with no vertices, but its camera ray was cast and counted in `rays`.
 void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const ShiftConfig& config,
-                                   const Vec2& film, Sampler& sampler, const TraceOptions& opt, CameraPath& base,
+                                   const Vec2& film, const Sampler& sampler, const WalkOptions& opt, CameraPath& base,
                                    const Vec2 pixel_offsets[4], const bool active[4], OffsetPath out[4]);
 
 }  // namespace gdr

@@ -15,7 +15,7 @@
 #include <string_view>
 
 #include "gdr/core/params.h"
-#include "gdr/path/vertex.h"
+#include "gdr/path/trace.h"
 #include "gdr/registry.h"
 
 namespace gdr {
@@ -50,7 +50,7 @@ struct ShiftStepInput {
     const Scene& scene;        ///< For visibility and tracing.
     const ShiftConfig& config; ///< Classification settings.
     const CameraPath& base;    ///< The recorded base path.
-    size_t k;                  ///< Index of the current base vertex (base.v[k] = x_{k+1} in 1-based terms).
+    size_t k;                  ///< Index of the current base vertex x_k in base.v (1 = the first hit; v[0] is the camera).
     const OffsetVertex& y;     ///< The offset's vertex at the same depth.
     /// The caller will test a reconnection's segment y_k -> x_{k+1} itself
     /// (batched with other offsets' segments): a step may then skip that test

@@ -9,7 +9,7 @@ namespace gdr::shift {
 
 /// Connectability of base vertex i (by its BSDF's roughness and its classification number).
 inline bool base_connectable(const ShiftStepInput& in, size_t i) {
-    const PathVertex& x = in.base.v[i];
+    const Vertex& x = in.base.v[i];
     return is_connectable(x.si.material->min_roughness, x.u_classify, in.config);
 }
 
@@ -19,7 +19,7 @@ inline bool offset_connectable(const ShiftStepInput& in) {
 }
 
 /// True if the base continues to a vertex x_{k+1}.
-inline bool base_has_next(const ShiftStepInput& in) { return in.base.v[in.k].scattered && in.k + 1 < in.base.size(); }
+inline bool base_has_next(const ShiftStepInput& in) { return in.base.v[in.k].scattered() && in.k + 1 < in.base.size(); }
 
 /// True if reconnecting y_k -> x_{k+1} is allowed: x_k, y_k and x_{k+1} are all connectable.
 inline bool can_reconnect(const ShiftStepInput& in) {
