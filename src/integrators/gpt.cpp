@@ -238,7 +238,8 @@ public:
         mis_.heuristic = p.get_choice("mis", "power", {"power", "balance"}) == "power" ? MisHeuristic::Power
                                                                                         : MisHeuristic::Balance;
         std::tie(trace_.max_vertices, trace_.rr_depth) = depth_params(p, "gpt");
-        trace_.reverse_densities = false;  // G-PT's MIS needs solid-angle densities only
+        // G-PT's MIS reads solid-angle densities only.
+        trace_.reverse_densities = false, trace_.forward_densities = false;
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         batch_ = batch_param(p, "gpt", kMaxBatch);

@@ -148,9 +148,12 @@ struct Connect {
 PathResult trace_path_from(const Scene& scene, const Ray& ray, const Sampler& sampler, const PathOptions& opt,
                            Subpath& path, bool first_hit) {
     PathResult r;
-    // A path tracer's strategies read no reverse densities; the first
-    // vertex's light entry was prefetched before the camera rays' packet.
-    WalkOptions wo{opt.max_depth, opt.rr_depth, false, opt.nee};
+    // A path tracer's strategies read no reverse densities, and forward
+    // ones only at emitters.
+    WalkOptions wo;
+    wo.max_vertices = opt.max_depth, wo.rr_depth = opt.rr_depth;
+    wo.reverse_densities = false, wo.forward_densities = false;
+    wo.prefetch_light = opt.nee;
     walk_subpath(scene, ray, Color(1.f), Color(1.f), scene.camera().direction_pdf(ray.d), sampler, wo, path,
                  Connect{scene, sampler, opt, r}, true, first_hit);
     r.rays += path.rays;

@@ -80,6 +80,9 @@ struct WalkOptions {
     /// Record pdf_rev (a BSDF density per vertex): strategies with two or
     /// more light vertices need it; a path tracer's (StrategySet max_s <= 1) do not.
     bool reverse_densities = true;
+    /// Record pdf_fwd at every vertex; without it only at emitters, the one
+    /// place a path tracer's MIS weight (s = 0 against s = 1) reads it.
+    bool forward_densities = true;
     /// Start loading each vertex's emitter-table entry a vertex ahead (camera
     /// walks, where the scene's light table is large enough for it to pay).
     bool prefetch_light = true;

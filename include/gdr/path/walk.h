@@ -82,10 +82,12 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         x.type = VertexType::Surface;
         x.wo = -ray.d;
         x.beta = beta;
-        // area_density() in float: distance and cosine of this segment.
-        const Vec3 d = x.si.p - prev.si.p;
-        const float dist2 = glm::dot(d, d);
-        x.pdf_fwd = dist2 > 0.f ? pdf_w * double(std::abs(glm::dot(x.si.ng, d)) / (dist2 * std::sqrt(dist2))) : 0.0;
+        if (opt.forward_densities || x.si.is_emitter()) {
+            // area_density() in float: distance and cosine of this segment.
+            const Vec3 d = x.si.p - prev.si.p;
+            const float dist2 = glm::dot(d, d);
+            x.pdf_fwd = dist2 > 0.f ? pdf_w * double(std::abs(glm::dot(x.si.ng, d)) / (dist2 * std::sqrt(dist2))) : 0.0;
+        }
         x.u_light = u_sel.x, x.u_lobe = u_sel.y;
         const SurfaceInteraction& si = x.si;
         if ((opt.max_vertices >= 0 && k == opt.max_vertices) || si.material->black) {
