@@ -1,4 +1,5 @@
 """examples/python/render_and_plot.py runs (at a low sample count) and writes its plot."""
+import importlib.util
 import os
 import subprocess
 import sys
@@ -9,6 +10,7 @@ from gdr_test_util import SOURCE_DIR, scratch_dir
 SCRIPT = os.path.join(SOURCE_DIR, "examples", "python", "render_and_plot.py")
 
 
+@unittest.skipUnless(importlib.util.find_spec("matplotlib"), "matplotlib is not installed (Debian: python3-matplotlib)")
 class Example(unittest.TestCase):
     def test_render_and_plot_writes_its_png(self):
         out = os.path.join(scratch_dir("example"), "relmse.png")
