@@ -10,8 +10,10 @@
 // thread waits for it, taking the GIL back every kPollSeconds only to check
 // for a pending signal (Python runs its signal handlers, such as Ctrl-C's
 // KeyboardInterrupt, on the main thread alone) and to call the progress
-// callback. An exception from either stops the render at once through
-// RenderSettings::abort, and is raised once the render thread has ended.
+// callback. An exception from either stops the render through
+// RenderSettings::abort (as the gdr tool's second Ctrl-C: the pass under way
+// is abandoned where it can be undone, so it stops within about a second),
+// and is raised once the render thread has ended.
 #include <pybind11/eval.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -190,7 +192,7 @@ struct RenderJob {
     bool finished = false;          ///< The render thread has returned.
     gdr::Progress latest;           ///< Latest progress a worker reported.
     uint64_t reports = 0;           ///< Progress reports so far.
-    std::atomic<bool> abort{false}; ///< Set by the caller to stop the render at once.
+    std::atomic<bool> abort{false}; ///< Set by the caller to stop the render (RenderSettings::abort).
     gdr::FrameBuffer fb;
     gdr::RenderStats stats;
     std::exception_ptr error;       ///< What the render threw, if anything.
@@ -405,6 +407,9 @@ PYBIND11_MODULE(gdr, m) {
         "the top. Errors are gdr.Error subclasses (also ValueError or RuntimeError)\n"
         "carrying gdr's message, and OSError subclasses for unreadable files.";
     m.attr("__version__") = GDR_VERSION;
+    // Each docstring starts with its own signature line, in Python's terms.
+    py::options options;
+    options.disable_function_signatures();
 
     g_error = make_exception(m, "Error", py::make_tuple(py::handle(PyExc_Exception)),
                              "Base of gdr's errors; the message names the file, key or pixel.");
@@ -506,7 +511,7 @@ PYBIND11_MODULE(gdr, m) {
                 gdr::set_resolution(s.sf, width, height);
             },
             py::arg("width") = 0, py::arg("height") = 0,
-            "Sets the image size (pixels), keeping the camera's position, orientation and field of view; 0 "
+            "set_resolution(width=0, height=0)\n\nSets the image size (pixels), keeping the camera's position, orientation and field of view; 0 "
             "for one side keeps the aspect ratio (as gdr render --width/--height).")
         .def(
             "set_fov",
@@ -517,7 +522,7 @@ PYBIND11_MODULE(gdr, m) {
                 gdr::set_fov(s.sf, degrees, axis ? (*axis)[0] : 0);
             },
             py::arg("degrees"), py::arg("axis") = py::none(),
-            "Sets the full field of view (degrees, in (0, 180)) along axis 'x' or 'y' (default: the camera's "
+            "set_fov(degrees, axis=None)\n\nSets the full field of view (degrees, in (0, 180)) along axis 'x' or 'y' (default: the camera's "
             "fov_axis), keeping the resolution (as gdr render --set fov=DEG).")
         .def("__repr__", [](const PyScene& s) {
             return "<gdr.Scene '" + s.sf.path + "' " + std::to_string(s.sf.scene->camera().width()) + "x" +
@@ -554,8 +559,8 @@ PYBIND11_MODULE(gdr, m) {
           "time: > 0 renders whole passes until that many seconds have passed, instead of spp.\n"
           "first_sample: the index of the first sample per pixel (continuing a sequence).\n"
           "The GIL is released while rendering. Ctrl-C (KeyboardInterrupt), or any exception\n"
-          "raised by the progress callback, stops the render at once; the exception is raised\n"
-          "when the render has stopped, and the partial image is discarded.");
+          "raised by the progress callback, stops the render within about a second; the\n"
+          "exception is raised when the render has stopped, and the partial image is discarded.");
 
     m.def("reconstruct", &reconstruct, py::arg("primal"), py::arg("dx"), py::arg("dy"), py::kw_only(),
           py::arg("method") = "poisson-l1", py::arg("direct") = py::none(),
