@@ -562,9 +562,9 @@ PYBIND11_MODULE(gdr, m) {
           "raised by the progress callback, stops the render within about a second; the\n"
           "exception is raised when the render has stopped, and the partial image is discarded.");
 
-    m.def("reconstruct", &reconstruct, py::arg("primal"), py::arg("dx"), py::arg("dy"), py::kw_only(),
+    m.def("reconstruct", &reconstruct, py::arg("primal"), py::arg("dx"), py::arg("dy"),
           py::arg("method") = "poisson-l1", py::arg("direct") = py::none(),
-          "reconstruct(primal, dx, dy, *, method='poisson-l1', direct=None, **params) -> array\n\n"
+          "reconstruct(primal, dx, dy, method='poisson-l1', direct=None, **params) -> array\n\n"
           "The image reconstructed from a gradient-domain render's buffers (arrays of shape\n"
           "(height, width[, channels]), all of one shape): dx(x, y) = I(x+1, y) - I(x, y) at the\n"
           "left pixel, dy(x, y) = I(x, y+1) - I(x, y) at the top pixel (rows downwards).\n"

@@ -10,9 +10,10 @@ bash scripts/install-deps.sh
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j"$(nproc)" --target gdr_cli
 # The Python module, where CMake found what it needs (it says so otherwise).
-if [[ -d build/python/CMakeFiles/gdr_python.dir ]]; then
+if grep -q "/gdr_python.dir$" build/CMakeFiles/TargetDirectories.txt 2>/dev/null; then
     cmake --build build -j"$(nproc)" --target gdr_python
-    echo "setup: the Python module is in build/python: PYTHONPATH=build/python python3 -c 'import gdr'"
+    python=$(sed -n 's/^Python3_EXECUTABLE:[A-Z]*=//p' build/CMakeCache.txt)
+    echo "setup: the Python module is in build/python, for $python: PYTHONPATH=build/python $python -c 'import gdr'"
 fi
 mkdir -p out
 ./build/bin/gdr render scenes/cornell-box/scene.json --integrator gpt --spp 32 -o out/cornell-box.exr
