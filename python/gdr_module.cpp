@@ -54,7 +54,7 @@ namespace {
 /// How often (s) a waiting render call checks for signals and reports progress.
 constexpr double kPollSeconds = 0.05;
 
-// The module's exception classes, made at import (PyErr_NewException), kept for the translator.
+/// The module's exception classes, made at import (PyErr_NewException), kept for the translator.
 PyObject* g_error = nullptr;
 PyObject* g_input_error = nullptr;
 PyObject* g_parameter_error = nullptr;
@@ -153,7 +153,7 @@ py::dict params_dict(const gdr::Params& p) {
 
 /// A loaded scene file, shared by the Python object and the renders running on it.
 struct PyScene {
-    gdr::SceneFile sf;
+    gdr::SceneFile sf;            ///< The scene and what its file said.
     std::atomic<int> renders{0};  ///< Renders running on it (changing the camera is refused meanwhile).
 
     /// Throws RuntimeFailure if a render is running (`what` names the change).
@@ -163,6 +163,7 @@ struct PyScene {
     }
 };
 
+/// gdr.load_scene: the scene file at `path`, loaded without the GIL.
 std::shared_ptr<PyScene> load_scene(const fs::path& path, const py::object& defines, bool lenient) {
     gdr::SceneFileOptions options;
     options.lenient = lenient;
@@ -187,25 +188,28 @@ std::shared_ptr<PyScene> load_scene(const fs::path& path, const py::object& defi
 
 /// What the render thread and the waiting caller share.
 struct RenderJob {
-    std::mutex mutex;
-    std::condition_variable finished_cv;
+    std::mutex mutex;               ///< Guards finished, latest and reports.
+    std::condition_variable finished_cv;  ///< Signalled when finished is set.
     bool finished = false;          ///< The render thread has returned.
     gdr::Progress latest;           ///< Latest progress a worker reported.
     uint64_t reports = 0;           ///< Progress reports so far.
     std::atomic<bool> abort{false}; ///< Set by the caller to stop the render (RenderSettings::abort).
-    gdr::FrameBuffer fb;
-    gdr::RenderStats stats;
+    gdr::FrameBuffer fb;            ///< The render's layers.
+    gdr::RenderStats stats;         ///< What the render did.
     std::exception_ptr error;       ///< What the render threw, if anything.
 };
 
-py::object g_layers_type;  // gdr.Layers, defined in Python at import
+/// The class gdr.Layers, defined in Python at import.
+py::object g_layers_type;
 
+/// A gdr.Layers of the buffer's layers (moved out of it), metadata and `stats` (a RenderStats or None).
 py::object make_layers(gdr::FrameBuffer& fb, py::object stats) {
     py::dict meta;
     for (const auto& [k, v] : fb.metadata()) meta[py::str(k)] = v;
     return g_layers_type(layers_of(fb), meta, stats);
 }
 
+/// gdr.render: renders on a thread of its own while this one waits without the GIL (see the file comment).
 py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std::string>& integrator,
                   std::optional<long long> spp, std::optional<long long> seed, int threads, const py::object& params,
                   const py::object& progress, double time, long long first_sample) {
@@ -310,6 +314,7 @@ py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std
 
 // ------------------------------------------------------------------ reconstruction and files
 
+/// gdr.reconstruct: the image (radiance) reconstructed by `method` from the buffers.
 py::array_t<float> reconstruct(const py::object& primal, const py::object& dx, const py::object& dy,
                                const std::string& method, const py::object& direct, const py::kwargs& kwargs) {
     gdr::Params p("reconstruct(" + method + ")");
@@ -328,6 +333,7 @@ py::array_t<float> reconstruct(const py::object& primal, const py::object& dx, c
     return to_array(std::move(out));
 }
 
+/// gdr.read_exr: every layer of the EXR at `path`, with its header's metadata.
 py::object read_exr(const fs::path& path) {
     gdr::FrameBuffer fb;
     try {
@@ -340,6 +346,7 @@ py::object read_exr(const fs::path& path) {
     return make_layers(fb, py::none());
 }
 
+/// gdr.write_exr: writes the layers and metadata as one multi-layer EXR.
 void write_exr(const fs::path& path, const py::object& layers, const py::object& metadata) {
     gdr::FrameBuffer fb;
     const py::dict d = py::cast<py::dict>(layers);
@@ -378,7 +385,7 @@ std::pair<gdr::Image, gdr::Image> image_pair(const py::object& img, const py::ob
     return {to_image(img, std::string(fn) + ": image"), to_image(ref, std::string(fn) + ": reference")};
 }
 
-// Defines gdr.Layers, a dict subclass: Python's own mapping, with the two attributes added.
+/// Python source of gdr.Layers: a dict subclass, so that it is Python's own mapping, with two attributes added.
 const char* kLayersSource = R"PY(
 class Layers(dict):
     """Image layers by name: a dict of float32 numpy arrays of shape (height, width,
