@@ -5,7 +5,8 @@
 # Then the same suite on the portable scalar build in ./build-scalar
 # (GDR_SIMD=OFF, what processors other than x86-64 get), without the
 # benchmarks. The Slurm test (tests/slurm.sh) runs where slurm-wlm and munge
-# are installed and the user is root, and is reported as skipped elsewhere.
+# are installed and the user is root, and is reported as skipped elsewhere;
+# so are the Python module's tests (tests/python) where the module is not built.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 # What the suite will skip, said up front (ctest's summary lists it again at

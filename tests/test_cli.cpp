@@ -293,3 +293,27 @@ TEST_CASE("cli: merging gradient-domain renders reconstructs the pooled buffers"
     CHECK(num / den < 1e-4);
     CHECK(avg_num / den > 1e-2);  // averaging the parts' reconstructions would be visibly off
 }
+
+TEST_CASE("cli: check-shift takes a Mitsuba scene's -D parameters and --lenient", "[cli][mitsuba]") {
+    // A diffuse rectangle whose reflectance is the scene's $level, lit by an
+    // emitter behind the camera, and an environment light, which gdr does not support.
+    const std::string scene = out("check-shift.xml");
+    std::ofstream(scene) << R"(<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="40"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="16"/><integer name="height" value="12"/></film></sensor>
+  <shape type="rectangle"><bsdf type="diffuse"><rgb name="reflectance" value="$level"/></bsdf></shape>
+  <shape type="rectangle"><boolean name="flip_normals" value="true"/>
+    <transform name="to_world"><scale value="3"/><translate z="6"/></transform>
+    <emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
+  <emitter type="constant"/>
+</scene>)";
+    CHECK_THAT(error_of({"check-shift", scene, "--paths", "20"}), Contains("$level"));
+    CHECK_THAT(error_of({"check-shift", scene, "--paths", "20", "-D", "level=0.5"}),
+               Contains("constant") && Contains("--lenient"));
+    CHECK_THAT(error_of({"check-shift", scene, "-D", "level"}), Contains("-D") && Contains("name=value"));
+    CHECK_THAT(test::stdout_of([&] {
+                   cli::run({"check-shift", scene, "--paths", "20", "-D", "level=0.5", "--lenient"});
+               }),
+               Contains("of 20 sampled") && Contains("PASS"));
+}

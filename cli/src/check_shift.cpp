@@ -3,6 +3,8 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "render_options.h"
+#include "say.h"
 #include "gdr/core/error.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/shift/validate.h"
@@ -14,6 +16,7 @@ int check_shift(const std::vector<std::string>& args) {
     std::string scene_path, shift_name = "half-vector";
     ValidateOptions opt;
     ShiftConfig cfg;
+    SceneFileOptions scene_options;
     while (a.more()) {
         const std::string o = a.next();
         if (o == "-h" || o == "--help") return print_usage("check-shift");
@@ -29,12 +32,15 @@ int check_shift(const std::vector<std::string>& args) {
             if (cfg.threshold < 0.f) throw ParameterError("option --threshold must be >= 0");
         }
         else if (o == "--probabilistic") cfg.probabilistic = true;
+        else if (o == "-D") add_define(scene_options, a.value(o));
+        else if (o == "--lenient") scene_options.lenient = true;
         else if (!o.empty() && o[0] == '-') throw ParameterError("check-shift: unknown option '" + o + "'\n" + usage("check-shift"));
         else if (scene_path.empty()) scene_path = o;
         else throw ParameterError("check-shift: unexpected argument '" + o + "'");
     }
     if (scene_path.empty()) throw ParameterError("check-shift: no scene file given\n" + usage("check-shift"));
-    const SceneFile sf = load_scene_file(scene_path);
+    const SceneFile sf = load_scene_file(scene_path, scene_options);
+    for (const std::string& w : sf.warnings) say("warning: {}\n", w);
     const auto shift = shift_registry().create(shift_name, Params("--shift"));
     const ShiftReport rep = validate_shift(*sf.scene, *shift, cfg, opt);
     fmt::print("{}: {}", scene_path, rep.summary());

@@ -140,10 +140,12 @@ const CommandHelp kCommands[] = {
      "                    factor in both dimensions are downsampled automatically\n"
      "A grey layer is broadcast to compare with an RGB one, and alpha is dropped to compare with RGB."},
     {"check-shift",
-     "gdr check-shift SCENE.json [--shift NAME] [--paths N] [--seed S] [--max-depth D] [--threshold T] "
-     "[--probabilistic]",
+     "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--paths N] [--seed S] [--max-depth D] [--threshold T]\n"
+     "                [--probabilistic] [-D name=value]... [--lenient]",
      "Samples base paths, shifts each to its right-hand neighbour, and checks the failure rate,\n"
-     "reversibility and each step's analytic against a finite-difference Jacobian. Ends with PASS or FAIL."},
+     "reversibility and each step's analytic against a finite-difference Jacobian. Ends with PASS or FAIL.\n"
+     "  -D name=value   a Mitsuba XML scene's $parameter (overrides its <default>)\n"
+     "  --lenient       a Mitsuba XML scene's unsupported elements become warnings and are skipped"},
     {"list", "gdr list", "Lists the registered integrators with their parameters, shift mappings and reconstructors."},
     {"help", "gdr help [COMMAND]", "Prints the usage of every command, or one command's options."},
     {"version", "gdr --version", "Prints gdr's version."},

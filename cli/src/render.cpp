@@ -97,6 +97,14 @@ void apply_scene_setting(SceneFile& sf, const std::string& assignment) {
     set_fov(sf, float(fov));
 }
 
+void add_define(SceneFileOptions& options, const std::string& assignment) {
+    // A Mitsuba scene's $parameter, as Mitsuba's own tool takes it.
+    const size_t eq = assignment.find('=');
+    if (eq == 0 || eq == std::string::npos)
+        throw ParameterError("option -D expects name=value, got '" + assignment + "'");
+    options.defines[assignment.substr(0, eq)] = assignment.substr(eq + 1);
+}
+
 std::pair<int, int> parse_resolution(const std::string& v) {
     const size_t x = v.find_first_of("xX");
     if (x == std::string::npos) throw ParameterError("option --resolution expects WIDTHxHEIGHT, got '" + v + "'");
@@ -141,13 +149,8 @@ int render(const std::vector<std::string>& args) {
             const std::string v = a.value(opt);
             // Keys of the scene rather than of the integrator.
             (is_scene_key(v) ? scene_sets : sets).push_back(v);
-        } else if (opt == "-D") {
-            // A Mitsuba scene's $parameter, as Mitsuba's own tool takes it.
-            const std::string v = a.value(opt);
-            const size_t eq = v.find('=');
-            if (eq == 0 || eq == std::string::npos) throw ParameterError("option -D expects name=value, got '" + v + "'");
-            scene_options.defines[v.substr(0, eq)] = v.substr(eq + 1);
-        } else if (opt == "--lenient") scene_options.lenient = true;
+        } else if (opt == "-D") add_define(scene_options, a.value(opt));
+        else if (opt == "--lenient") scene_options.lenient = true;
         else if (opt == "--resume") resume_path = a.value(opt);
         else if (opt == "--exposure") exposure = a.real_value(opt);
         else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage("render"));

@@ -20,6 +20,10 @@ bool is_scene_key(const std::string& assignment);
 /// Applies a --set assignment of a scene key (is_scene_key: the field of view, degrees) to the loaded scene.
 void apply_scene_setting(SceneFile& sf, const std::string& assignment);
 
+/// Adds the -D assignment "name=value" (a Mitsuba XML scene's $name parameter) to
+/// `options`; throws ParameterError unless it is a non-empty name, '=' and a value.
+void add_define(SceneFileOptions& options, const std::string& assignment);
+
 /// The width and height (pixels) of --resolution "WxH".
 std::pair<int, int> parse_resolution(const std::string& v);
 
