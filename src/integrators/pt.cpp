@@ -127,9 +127,8 @@ PathResult trace_path_from(const Scene& scene, Ray ray, Sampler& sampler, const 
             if (depth == 1 && !first) scene.prefetch_light(u_sel.x);
             scene.prefetch_light(u_sel_next.x);
         }
-        if (depth == 1 && first) {
-            if (!first_hit) break;
-        } else if (!scene.intersect(ray, traced)) {
+        if (depth == 1 && first ? !first_hit : !scene.intersect(ray, traced)) {
+            detail::add_escaped(scene, ray.d, st, opt, r);
             break;
         }
         const SurfaceInteraction& si = depth == 1 && first ? *first : traced;

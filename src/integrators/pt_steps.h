@@ -20,6 +20,35 @@ struct PathState {
     bool aux_done = false;   ///< Albedo and normal are recorded (at the first non-delta vertex).
 };
 
+/// Adds to r the environment's radiance along a ray that left the scene in
+/// unit direction `dir`, MIS-weighted against light sampling as add_emission()
+/// weights an emitter's (W/(m^2 sr)); nothing without an environment.
+inline void add_escaped(const Scene& scene, const Vec3& dir, const PathState& st, const PathOptions& opt,
+                        PathResult& r) {
+    const Environment* env = scene.environment();
+    if (!env) return;
+    const Color le = env->eval(dir);
+    if (is_black(le)) return;
+    const float w = opt.nee && !st.prev_delta ? power_heuristic(st.prev_pdf_w, scene.environment_pdf(dir)) : 1.f;
+    r.radiance += st.beta * le * w;
+}
+
+/// Next-event estimation with an infinite light sample `ls` (a direction to
+/// the environment) at hit `si` entered from local direction wo: the shadow
+/// ray is unbounded, and the light density is ls.pdf_w (solid angle).
+inline void add_environment_sample(const Scene& scene, const SurfaceInteraction& si, const Bsdf& bsdf,
+                                   const Vec3& wo, const LightSample& ls, const PathState& st, PathResult& r) {
+    if (is_black(ls.radiance) || !(ls.pdf_w > 0.f)) return;
+    const Vec3 wi_world = -ls.n;
+    const Vec3 wi = si.frame.to_local(wi_world);
+    const BsdfEval fe = bsdf.eval_pdf(wo, wi, si.uv);
+    if (is_black(fe.f)) return;
+    ++r.rays;
+    if (scene.occluded(spawn_ray(si, wi_world))) return;
+    const float w = power_heuristic(ls.pdf_w, fe.pdf);
+    r.radiance += st.beta * fe.f * abs_cos_theta(wi) * ls.radiance * (w / ls.pdf_w);
+}
+
 // Both are inline: out of line, the path state went through memory between
 // them, and the scalar kernel lost about a tenth of its speed.
 /// Adds to r the emission of hit `si` seen in direction wo_world (unit, away
@@ -69,7 +98,9 @@ inline bool scatter(const Scene& scene, const SurfaceInteraction& si, const Vec3
         const LightSample ls = scene.sample_light(si.p, u_light, sampler.at2(block + dims::kLightPoint));
         const Vec3 d = ls.p - si.p;
         const float dist2 = glm::dot(d, d);
-        if (!is_black(ls.radiance) && dist2 > 0.f) {
+        if (ls.infinite) [[unlikely]] {
+            add_environment_sample(scene, si, bsdf, wo, ls, st, r);
+        } else if (!is_black(ls.radiance) && dist2 > 0.f) {
             const float dist = std::sqrt(dist2);
             const Vec3 wi_world = d / dist;
             const Vec3 wi = si.frame.to_local(wi_world);
