@@ -359,6 +359,50 @@ TEST_CASE("environment: white furnace for pt and bdpt", "[environment][statistic
     }
 }
 
+TEST_CASE("environment: light subpaths leave the bounding disk with the densities they record", "[environment][bdpt][statistical]") {
+    // A light subpath from the environment picks a direction, then a point
+    // on the disk across the bounding sphere; its first hit x has the disk's
+    // density times |cos| at x. So over many subpaths the mean of
+    // 1{hit} |cos| / pdf_fwd(x) is the area the object projects along the
+    // sampled directions (1 / pdf_fwd alone has infinite variance at the
+    // silhouette). Under a constant environment the directions are uniform,
+    // and a convex body's mean projected area is a quarter of its surface
+    // (Cauchy's surface area formula). The throughput a subpath starts with
+    // is Le / (p_dir p_disk).
+    auto scene = furnace(0.5f, 1.f, 8);
+    scene->set_environment(Environment::constant(Color(0.7f, 1.f, 1.3f)));
+    double area = 0.0;
+    const TriangleMesh& m = scene->mesh();
+    for (size_t t = 0; t < m.size(); ++t) {
+        const Vec3* p = &m.positions[3 * t];
+        area += 0.5 * glm::length(glm::cross(p[1] - p[0], p[2] - p[0]));
+    }
+    const int n = 400000;
+    double s = 0.0, s2 = 0.0;
+    int hits = 0;
+    Subpath light;
+    for (int i = 0; i < n; ++i) {
+        const Sampler sampler(SampleKey{9, uint32_t(i), 0, 0});
+        trace_light_subpath(*scene, sampler, {1, 5}, light);
+        REQUIRE(light.size() >= 1);
+        REQUIRE(light.v[0].infinite);
+        REQUIRE(light.v[0].pdf_fwd == Approx(scene->environment_pdf(-light.v[0].si.ng)).epsilon(2e-3));
+        if (light.size() < 2) continue;
+        const Vertex& x = light.v[1];
+        const double cos_x = std::abs(glm::dot(x.si.ng, light.v[0].si.ng));
+        CHECK(x.pdf_fwd == Approx(environment_disk_pdf(*scene) * cos_x).epsilon(1e-4));
+        const double le = luminance(light.v[0].le);
+        CHECK(luminance(x.beta) * light.v[0].pdf_fwd * environment_disk_pdf(*scene) == Approx(le).epsilon(1e-3));
+        const double v = cos_x / x.pdf_fwd;
+        s += v, s2 += v * v;
+        ++hits;
+    }
+    const double mean = s / n, se = std::sqrt((s2 / n - mean * mean) / (n - 1));
+    CAPTURE(mean, se, area, hits);
+    CHECK(std::abs(mean - area / 4.0) < 4.0 * se);
+    CHECK(se < 0.0025 * area);  // power: a 4% error is seen
+}
+
 TEST_CASE("environment: bdpt equals pt on an environment-lit box, weighted and by strategy", "[environment][bdpt][statistical]") {
     // The box's ceiling light and the rotated test map through its open
     // front: paths mix both lights and the walls occlude most of the map.
