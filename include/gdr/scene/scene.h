@@ -294,11 +294,6 @@ private:
     Camera camera_;
     SceneStats stats_;
     float radius_ = 1.f;
-    Vec3 center_{0.f};
-    std::shared_ptr<const Environment> env_;  // see set_environment()
-    float env_select_ = 0.f;                  // environment_selection()
-    // sample_light()'s environment branch, u_sel already tested.
-    LightSample sample_environment(const Vec3& ref, const Vec2& u) const;
     std::vector<uint32_t> hit_info_;        // per triangle: material | kSmooth | kHasUv
     std::vector<Frame> flat_frames_;        // per triangle: its face frame, or empty (a big scene)
     std::vector<LightBucket> buckets_;      // the alias table over the emitting triangles, for sample_light()
@@ -309,6 +304,17 @@ private:
     RayObserver* observer_ = nullptr;
     bool packets4_ = false;  // Embree traces 4-ray packets natively
     bool packets8_ = false;  // ... and 8-ray packets
+    // The environment's members come last: the ray and light-sample paths'
+    // members keep their places (and cache lines).
+    Vec3 center_{0.f};
+    std::shared_ptr<const Environment> env_;  // see set_environment()
+    float env_select_ = 0.f;                  // environment_selection()
+    // sample_light()'s environment branch, u_sel already tested.
+    LightSample sample_environment(const Vec3& ref, const Vec2& u) const;
+    // sample_light() (ref given) and sample_emitter_point() (ref null) in a scene with an environment.
+    [[gnu::noinline]] LightSample sample_with_environment(const Vec3* ref, float u_sel, const Vec2& u) const;
+    // The triangle both pick with u_sel once past the environment's share.
+    LightSample sample_triangle(float u_sel, const Vec2& u) const;
     template <int N, class RayHitN, class IntersectN>
     void intersect_packet(const Ray* rays, const bool* active, SurfaceInteraction* const* si, bool* hit,
                           IntersectN intersect_n) const;
