@@ -296,7 +296,7 @@ TEST_CASE("cli: merging gradient-domain renders reconstructs the pooled buffers"
 
 TEST_CASE("cli: check-shift takes a Mitsuba scene's -D parameters and --lenient", "[cli][mitsuba]") {
     // A diffuse rectangle whose reflectance is the scene's $level, lit by an
-    // emitter behind the camera, and an environment light, which gdr does not support.
+    // emitter behind the camera, and a sun-and-sky emitter, which gdr does not support.
     const std::string scene = out("check-shift.xml");
     std::ofstream(scene) << R"(<scene version="3.0.0">
   <sensor type="perspective"><float name="fov" value="40"/>
@@ -306,14 +306,22 @@ TEST_CASE("cli: check-shift takes a Mitsuba scene's -D parameters and --lenient"
   <shape type="rectangle"><boolean name="flip_normals" value="true"/>
     <transform name="to_world"><scale value="3"/><translate z="6"/></transform>
     <emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
-  <emitter type="constant"/>
+  <emitter type="sunsky"/>
 </scene>)";
     CHECK_THAT(error_of({"check-shift", scene, "--paths", "20"}), Contains("$level"));
     CHECK_THAT(error_of({"check-shift", scene, "--paths", "20", "-D", "level=0.5"}),
-               Contains("constant") && Contains("--lenient"));
+               Contains("sunsky") && Contains("--lenient"));
     CHECK_THAT(error_of({"check-shift", scene, "-D", "level"}), Contains("-D") && Contains("name=value"));
     CHECK_THAT(test::stdout_of([&] {
                    cli::run({"check-shift", scene, "--paths", "20", "-D", "level=0.5", "--lenient"});
                }),
                Contains("of 20 sampled") && Contains("PASS"));
+    // An environment light is supported by pt and bdpt, not yet by the shifts: a clear error.
+    const std::string env_scene = out("check-shift-env.xml");
+    std::ofstream(env_scene) << R"(<scene version="3.0.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+  <shape type="rectangle"><transform name="to_world"><translate z="-3"/></transform></shape>
+  <emitter type="constant"/>
+</scene>)";
+    CHECK_THAT(error_of({"check-shift", env_scene, "--paths", "20"}), Contains("environment"));
 }

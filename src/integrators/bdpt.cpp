@@ -151,10 +151,12 @@ private:
     // Albedo and normal at the first non-delta camera vertex, depth of the
     // first hit, as the path tracer writes them.
     static void write_aux(const Subpath& camera, float* o) {
-        if (camera.size() < 2) return;
+        // An environment vertex (a ray that left the scene) has no surface.
+        if (camera.size() < 2 || camera.v[1].infinite) return;
         o[9] = camera.v[1].si.t;
         for (int k = 1; k < camera.size(); ++k) {
             const SurfaceInteraction& si = camera.v[k].si;
+            if (camera.v[k].infinite) return;
             if (si.material->pure_delta) continue;
             const Color a = si.material->bsdf->albedo(si.uv);
             o[3] = a.r, o[4] = a.g, o[5] = a.b;

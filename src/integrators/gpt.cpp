@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include "gdr/path/dims.h"
+#include "gdr/path/environment.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/trace.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -283,6 +284,7 @@ protected:
     }
 
     int batch_size() const override { return batch_; }
+    void prepare(const Scene& scene) override { require_no_environment(scene, "gpt"); }
 
     void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                       uint64_t& rays) const override {

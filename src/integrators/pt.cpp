@@ -125,6 +125,12 @@ struct Connect {
         const StrategySet set{MisHeuristic::Power, opt.nee ? 1 : 0};
         const int t = path.size();
         const Vertex& x = path.v.back();
+        if (x.infinite) {
+            // The walk left the scene: the environment's radiance (s = 0) is all there is.
+            const ConnectionResult e = connect(scene, kNoLight, path, {0, t}, sampler, set, true, r.rays);
+            if (!is_black(e.value)) r.radiance += e.value * float(e.weight);
+            return;
+        }
         if (t == 2) r.depth = x.si.t;
         // Auxiliary data at the first vertex that is not a pure delta surface.
         if (!aux_done && !x.si.material->pure_delta) {

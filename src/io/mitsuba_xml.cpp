@@ -24,6 +24,7 @@
 #include <tiny_obj_loader.h>
 
 #include "gdr/core/error.h"
+#include "gdr/io/exr.h"
 #include "gdr/io/ply.h"
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
@@ -415,6 +416,7 @@ private:
     std::set<const void*> building_;  // BSDFs and textures being built (a ref cycle guard)
     std::vector<std::string> warnings_;
     std::vector<std::string> inputs_;
+    std::shared_ptr<Environment> environment_;  // a constant or envmap emitter, if any
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     std::vector<MeshStats> stats_;
@@ -1357,11 +1359,44 @@ void Importer::shape(xml_node n) {
 
 void Importer::emitter(xml_node n) {
     const std::string type = need_attr(n, "type");
-    if (type == "constant" || type == "envmap" || type == "sunsky" || type == "sky" || type == "sun") {
+    if (type == "constant" || type == "envmap") {
+        if (environment_) fail(n, "a scene takes one environment emitter (constant or envmap)");
+        Props p = props(n);
+        // The sampling weight changes only how often the light is sampled, not the image.
+        ignore(p, {"sampling_weight"});
+        const float scale = get_float(p, "scale", 1.f);
+        if (!std::isfinite(scale) || scale < 0.f) fail(n, "'scale' must be finite and non-negative");
+        try {
+            if (type == "constant") {
+                const Color l = get_colour(p, "radiance", Color(1.f)) * scale;
+                finish(p);
+                environment_ = Environment::constant(l);
+            } else {
+                const std::string name = get_string(p, "filename", "");
+                if (name.empty()) fail(n, "an envmap needs a 'filename'");
+                bool gamma_given = false;
+                const float gamma = get_float(p, "gamma", 1.f, &gamma_given);
+                if (gamma_given && gamma != 1.f)
+                    warn(n, fmt::format("gamma {} is ignored: the map is read as linear radiance (an EXR)", gamma));
+                ignore(p, {"cache", "filter_type", "mis_compensation"});
+                const Mat4 xf = get_transform(p, "to_world");
+                finish(p);
+                const std::string file = file_path(n, name);
+                inputs_.push_back(file);
+                environment_ = Environment::from_map(read_exr_rgb(file), glm::mat3(xf), scale, file);
+            }
+        } catch (const InputError& e) {
+            // Errors of the map or its values, placed at the element.
+            if (std::string(e.what()).rfind(doc_of(n).file, 0) == 0) throw;
+            fail(n, e.what());
+        }
+        return;
+    }
+    if (type == "sunsky" || type == "sky" || type == "sun") {
         if (!opt_.lenient)
-            fail(n, "environment lights (constant, envmap, sunsky) are not supported yet (--lenient skips it with a "
-                    "warning and renders the scene's area lights)");
-        warn(n, "environment lights are not supported yet; skipped (--lenient), so only the area lights light the scene");
+            fail(n, "sun and sky emitters (sunsky, sky, sun) are not supported (--lenient skips it with a warning and "
+                    "renders the scene's other lights)");
+        warn(n, "sun and sky emitters are not supported; skipped (--lenient), so only the other lights light the scene");
         return;
     }
     if (type == "area") fail(n, "an area emitter belongs inside a <shape>");
@@ -1423,6 +1458,7 @@ SceneFile Importer::run() {
     for (const auto& [k, v] : int_params_) sf.defaults.params.set(k, v);
     sf.meshes = std::move(stats_);
     sf.scene = std::make_unique<Scene>(std::move(mesh_), std::move(materials_), camera, path_);
+    if (environment_) sf.scene->set_environment(std::move(environment_));
     std::set<std::string> seen;
     for (std::string& f : inputs_)
         if (seen.insert(f).second) sf.inputs.push_back(std::move(f));

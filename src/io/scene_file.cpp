@@ -22,6 +22,7 @@
 #include <tiny_obj_loader.h>
 
 #include "gdr/core/error.h"
+#include "gdr/io/exr.h"
 #include "gdr/io/mitsuba_xml.h"
 #include "obj_lines.h"
 
@@ -226,6 +227,36 @@ Mat4 parse_transform(const std::string& file, const json& j) {
     }
     if (j.contains("scale")) r = glm::scale(r, get_vec3(file, j["scale"], "transform.scale"));
     return r;
+}
+
+// The scene file's "environment": a constant radiance or a lat-long EXR map
+// (environment.h), with a scale and, for a map, a rotation.
+std::shared_ptr<Environment> parse_environment(const std::string& file, const json& j,
+                                               std::vector<std::string>& inputs) {
+    check_keys(file, "environment", j, {"type", "radiance", "file", "scale", "transform"});
+    if (!j.contains("type") || !j["type"].is_string()) fail(file, "'environment.type' must be \"constant\" or \"envmap\"");
+    const std::string type = j["type"].get<std::string>();
+    const float scale = j.contains("scale") ? get_number(file, j["scale"], "environment.scale") : 1.f;
+    if (!(scale >= 0.f) || !std::isfinite(scale)) fail(file, "'environment.scale' must be finite and non-negative");
+    if (type == "constant") {
+        check_keys(file, "environment (constant)", j, {"type", "radiance", "scale"});
+        if (!j.contains("radiance")) fail(file, "a constant environment needs 'environment.radiance'");
+        const Color l = get_vec3(file, j["radiance"], "environment.radiance") * scale;
+        if (!is_finite(l) || l.r < 0.f || l.g < 0.f || l.b < 0.f)
+            fail(file, "'environment.radiance' must be finite and non-negative");
+        return Environment::constant(l);
+    }
+    if (type != "envmap") fail(file, "'environment.type' must be \"constant\" or \"envmap\", got '" + type + "'");
+    check_keys(file, "environment (envmap)", j, {"type", "file", "scale", "transform"});
+    if (!j.contains("file") || !j["file"].is_string()) fail(file, "an envmap environment needs 'environment.file'");
+    const std::string map = (fs::path(file).parent_path() / j["file"].get<std::string>()).string();
+    const Mat4 xf = j.contains("transform") ? parse_transform(file, j["transform"]) : Mat4(1.f);
+    inputs.push_back(map);
+    try {
+        return Environment::from_map(read_exr_rgb(map), glm::mat3(xf), scale, map);
+    } catch (const InputError& e) {
+        fail(file, std::string("environment: ") + e.what());
+    }
 }
 
 // Overrides of a material from the scene file, applied to the MTL description.
@@ -508,7 +539,7 @@ static SceneFile load_scene_file_impl(const std::string& path) {
         throw InputError(path + ": is a directory, not a scene file" + hint);
     }
     json j = parse_json_file(path);
-    check_keys(path, "the scene", j, {"camera", "meshes", "materials", "render", "description"});
+    check_keys(path, "the scene", j, {"camera", "meshes", "materials", "render", "description", "environment"});
     if (!j.contains("camera")) fail(path, "missing 'camera'");
     if (!j.contains("meshes") || !j["meshes"].is_array() || j["meshes"].empty())
         fail(path, "'meshes' must be a non-empty array");
@@ -589,7 +620,10 @@ static SceneFile load_scene_file_impl(const std::string& path) {
             else fail(path, "render.params." + it.key() + " must be a boolean, number or string");
         }
     }
+    std::shared_ptr<Environment> env;
+    if (j.contains("environment")) env = parse_environment(path, j["environment"], inputs);
     sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
+    if (env) sf.scene->set_environment(std::move(env));
     // A file used twice (one OBJ under two transforms, a shared texture) is hashed once.
     std::set<std::string> seen;
     for (std::string& f : inputs)

@@ -4,6 +4,7 @@
 #include <optional>
 
 #include "gdr/path/dims.h"
+#include "gdr/path/environment.h"
 
 namespace gdr {
 
@@ -45,7 +46,7 @@ void connection_densities(const Scene& scene, const Subpath& light, const Subpat
     const Vertex* pt_prev = t >= 2 ? &camera.v[t - 2] : nullptr;
     if (s == 0) {
         d.rev[t - 1] = pdf_light_origin(scene, pt);
-        if (pt_prev) d.rev[t - 2] = pdf_light_direction(pt, *pt_prev);
+        if (pt_prev) d.rev[t - 2] = pdf_light_direction(scene, pt, *pt_prev);
         return;
     }
     const Vertex* q_prev = s >= 2 ? &light.v[s - 2] : nullptr;
@@ -92,10 +93,31 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
     const Vertex& pt = camera.v[t - 1];
     std::optional<Vertex> sampled;  // s = 1: the light point sampled from pt (a record is large: built only then)
     const Vertex* q = nullptr;
-    if (s == 0) {
+    if (pt.infinite) {
+        // The camera walk left the scene: only s = 0 sees the environment.
+        if (s != 0) return r;
+        r.value = pt.beta * pt.le;
+    } else if (s == 0) {
         // The camera walk hit an emitter.
         if (pt.type != VertexType::Surface || !pt.si.is_emitter()) return r;
         r.value = pt.beta * pt.si.emitted(pt.wo);
+    } else if (s == 1 && scene.picks_environment(pt.u_light)) {
+        // Next-event estimation towards the environment (path/environment.h).
+        if (!pt.connectible()) return r;
+        const LightSample ls =
+            scene.sample_light(pt.si.p, pt.u_light, camera_sampler.at2(dims::vertex(t - 1) + dims::kLightPoint));
+        sampled.emplace();
+        double nee_pdf_w = 0.0;  // pt's BSDF density of the direction (1/sr)
+        if (!connect_environment(scene, pt, ls, r.value, nee_pdf_w, *sampled, rays)) {
+            r = {};  // every exit returns r, so it is built in the caller's slot
+            return r;
+        }
+        if (want_weight && set.max_s == 1) {
+            // Both densities of a direction at infinity are solid-angle ones.
+            r.weight = mis_weight(set.heuristic, 1.0, {1.0, remap0(nee_pdf_w) / remap0(double(ls.pdf_w))});
+            return r;
+        }
+        q = &*sampled;
     } else if (t == 1) {
         // Light tracing: the light subpath's vertex seen by the pinhole.
         q = &light.v[s - 1];

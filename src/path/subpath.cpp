@@ -4,12 +4,18 @@
 
 #include "gdr/path/vertex.h"
 #include "gdr/path/dims.h"
+#include "gdr/path/environment.h"
 #include "gdr/scene/warp.h"
 
 namespace gdr {
 
 
 double area_density(double pdf_w, const Vertex& from, const Vertex& to) {
+    // An environment vertex is measured by solid angle; from one, pdf_w is
+    // the emission disk's planar density, projected onto `to` (environment.h).
+    if (to.infinite) return pdf_w;
+    if (from.infinite)
+        return to.type == VertexType::Camera ? pdf_w : pdf_w * std::abs(glm::dot(Vec3d(to.si.ng), Vec3d(from.si.ng)));
     const Vec3d d = Vec3d(to.si.p) - Vec3d(from.si.p);
     const double dist = glm::length(d);
     if (!(dist > 0.0)) return 0.0;
@@ -56,6 +62,14 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
     if (!scene.has_lights()) return;
     const uint32_t b = dims::light_origin();
     const LightSample ls = scene.sample_emitter_point(sampler.at(b + dims::kEmitSelect), sampler.at2(b + dims::kEmitPoint));
+    if (ls.infinite) {
+        Ray ray;
+        Color beta;
+        double pdf_disk = 0.0;
+        if (start_environment_subpath(scene, ls, sampler.at2(b + dims::kEmitDir), path, ray, beta, pdf_disk))
+            walk_subpath(scene, ray, beta, Color(1.f), pdf_disk, sampler, opt, path, RecordVertices{});
+        return;
+    }
     if (!(ls.pdf_a > 0.f) || is_black(ls.radiance)) return;
     Vertex l;
     l.type = VertexType::Light;
@@ -78,6 +92,15 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
 }
 
 double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next) {
+    if (cur.infinite) return area_density(environment_disk_pdf(scene), cur, next);
+    if (next.infinite || (prev && prev->infinite)) {
+        // Directions to vertices at infinity are theirs, not their far points'.
+        if (cur.type != VertexType::Surface || !prev) return 0.0;
+        const SurfaceInteraction& si = cur.si;
+        const double pdf_w = si.material->bsdf->pdf(si.frame.to_local(vertex_direction(cur, *prev)),
+                                                    si.frame.to_local(vertex_direction(cur, next)), si.uv);
+        return area_density(pdf_w, cur, next);
+    }
     const Vec3 d = next.si.p - cur.si.p;
     const float len = glm::length(d);
     if (!(len > 0.f)) return 0.0;
@@ -98,12 +121,18 @@ double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const
 }
 
 double pdf_light_origin(const Scene& scene, const Vertex& v) {
+    if (v.infinite) return scene.environment_pdf(-v.si.ng);
     if (v.type == VertexType::Light) return v.pdf_fwd;
     if (v.type != VertexType::Surface || !v.si.is_emitter()) return 0.0;
     return scene.light_pdf_a(v.si.prim);
 }
 
+double pdf_light_direction(const Scene& scene, const Vertex& v, const Vertex& next) {
+    return v.infinite ? area_density(environment_disk_pdf(scene), v, next) : pdf_light_direction(v, next);
+}
+
 double pdf_light_direction(const Vertex& v, const Vertex& next) {
+    if (v.infinite) return 0.0;  // needs the scene's disk: the overload above
     const Vec3 d = next.si.p - v.si.p;
     const float len = glm::length(d);
     if (!(len > 0.f)) return 0.0;

@@ -8,6 +8,7 @@
 
 #include "gdr/core/sampler.h"
 #include "gdr/path/dims.h"
+#include "gdr/path/environment.h"
 #include "gdr/path/trace.h"
 #include "gdr/shift/offset_path.h"
 
@@ -135,6 +136,7 @@ CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& of
 ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftConfig& config, const ValidateOptions& o) {
     ShiftReport rep;
     rep.shift = shift.name();
+    require_no_environment(scene, "the shift validator (check-shift)");
     const int W = scene.camera().width(), H = scene.camera().height();
     if (W < 2) throw ParameterError("validate_shift: the image must be at least 2 pixels wide");
     const Vec2 right(1.f, 0.f);

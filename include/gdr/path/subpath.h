@@ -48,6 +48,13 @@ struct Vertex {
     /// Random number of probabilistic vertex classification (0.5 unless
     /// WalkOptions::classify_numbers), shared by a base path and its offsets.
     float u_classify = 0.5f;
+    /// A light vertex at infinity, on the environment (path/environment.h):
+    /// si.ng is the unit direction light travels from it into the scene, si.p
+    /// a point far along -si.ng; its "area" densities are solid-angle ones
+    /// (1/sr) of that direction, and the first vertex after it on a light
+    /// subpath has the density of the emission disk, per m^2 (pbrt-v4's
+    /// convention for infinite lights).
+    bool infinite = false;
 
     /// True if the walk sampled a direction here (bs is valid).
     bool scattered() const { return bs.pdf > 0.f; }
@@ -120,10 +127,14 @@ double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const
 /// geometric normal (none at the camera).
 double area_density(double pdf_w, const Vertex& from, const Vertex& to);
 /// Area density (1/m^2) with which a light subpath would start at emitter
-/// point `v` (power and area selection); 0 where it does not emit.
+/// point `v` (power and area selection; for an environment vertex the
+/// solid-angle density of its direction, selection included); 0 where it does not emit.
 double pdf_light_origin(const Scene& scene, const Vertex& v);
 /// Area density (1/m^2) at `next` of the direction a light subpath starting
-/// at emitter point `v` would emit towards it (cos / pi, converted).
+/// at emitter point `v` would emit towards it (cos / pi, converted; for an
+/// environment vertex the emission disk's density, path/environment.h).
+double pdf_light_direction(const Scene& scene, const Vertex& v, const Vertex& next);
+/// pdf_light_direction() of a finite emitter point `v` (0 for an environment vertex).
 double pdf_light_direction(const Vertex& v, const Vertex& next);
 /// Scattering value at surface vertex `v` from its previous vertex (v.wo)
 /// towards unit world direction w, for the vertex's subpath's transport

@@ -13,6 +13,7 @@
 #include "gdr/core/in_place.h"
 #include "gdr/core/sampler.h"
 #include "gdr/path/dims.h"
+#include "gdr/path/environment.h"
 #include "gdr/path/subpath.h"
 #include "gdr/path/vertex.h"
 
@@ -49,7 +50,9 @@ constexpr uint32_t vertex_block(TransportMode mode, int k) {
 /// into a new last record of `path` (first_hit: it hit there), e.g. in one
 /// Embree packet with other samples' rays; otherwise the walk traces it.
 /// Vertex k's numbers come from vertex_block(path.mode, k); `on_vertex(path)`
-/// runs once for every vertex found, once its arrival is recorded (type,
+/// runs once for every vertex found (for a camera walk that leaves a scene
+/// with an environment light, also for the environment vertex it ends on,
+/// Vertex::infinite), once its arrival is recorded (type,
 /// point, wo, beta, pdf_fwd and its numbers, not yet the direction sampled
 /// there, bs and delta, which are written after it), and must not add
 /// vertices.
@@ -68,13 +71,16 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
     if (prefetch) scene.prefetch_light(u_sel.x);
     for (int k = 1; opt.max_vertices < 0 || k <= opt.max_vertices; ++k) {
         ++path.rays;
-        if (k == 1 && first_recorded) {
-            if (!first_hit) {
-                path.v.pop_back();
-                return;
-            }
-        } else if (!scene.intersect(ray, path.v.emplace_back().si)) {  // built in place: a record is large
+        const bool hit = k == 1 && first_recorded ? first_hit
+                                                  : scene.intersect(ray, path.v.emplace_back().si);  // built in place
+        if (!hit) {
             path.v.pop_back();
+            // A camera walk that leaves the scene ends on the environment, if
+            // there is one (path/environment.h); the hook sees that vertex too.
+            if (mode == TransportMode::Radiance && scene.environment()) [[unlikely]] {
+                append_escape_vertex(scene, ray, beta, pdf_w, path);
+                on_vertex(path);
+            }
             return;
         }
         Vertex& x = path.v.back();
@@ -82,7 +88,9 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         x.type = VertexType::Surface;
         x.wo = -ray.d;
         x.beta = beta;
-        if (opt.forward_densities || x.si.is_emitter()) {
+        if (prev.infinite) [[unlikely]] {
+            x.pdf_fwd = area_density(pdf_w, prev, x);  // the emission disk's density (path/environment.h)
+        } else if (opt.forward_densities || x.si.is_emitter()) {
             // area_density() in float: distance and cosine of this segment.
             const Vec3 d = x.si.p - prev.si.p;
             const float dist2 = glm::dot(d, d);

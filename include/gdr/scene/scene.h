@@ -10,6 +10,7 @@
 #include "gdr/core/math.h"
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/camera.h"
+#include "gdr/scene/environment.h"
 
 namespace gdr {
 
@@ -58,13 +59,23 @@ struct SurfaceInteraction {
     bool is_emitter() const { return !is_black(material->emission); }
 };
 
-/// A point sampled on an emitter.
+/// A point sampled on an emitter, or a direction to the environment.
 struct LightSample {
-    Vec3 p{0.f};         ///< Position on the emitter.
-    Vec3 n{0.f};         ///< Emitter's geometric (front) normal.
+    Vec3 p{0.f};         ///< Position on the emitter; for an infinite sample a point beyond the scene along -n (see `infinite`).
+    Vec3 n{0.f};         ///< Emitter's geometric (front) normal; for an infinite sample minus the sampled direction.
     Color radiance{0.f}; ///< Emitted radiance towards the reference point (0 if it sees the back side).
-    float pdf_a = 0.f;   ///< Area-measure density including light selection (1/m^2).
-    uint32_t prim = 0;   ///< Emitting triangle.
+    /// Area-measure density including light selection (1/m^2); 0 for an
+    /// infinite sample, which has no area density: code that does not know
+    /// of environments thus drops such samples instead of misweighting them.
+    float pdf_a = 0.f;
+    uint32_t prim = 0;   ///< Emitting triangle (unset for an infinite sample).
+    /// The sample is a direction wi = -n towards the environment (light from
+    /// infinitely far away): its density is pdf_w, and p lies outside the
+    /// scene's bounding sphere along wi from the reference point (from the
+    /// bounds centre for sample_emitter_point()), so that a segment to p is a
+    /// shadow ray towards the environment.
+    bool infinite = false;
+    float pdf_w = 0.f;   ///< Infinite samples: solid-angle density of -n including light selection (1/sr).
 };
 
 /// True if a triangle has no area a ray can hit (zero, or overflowing float):
@@ -146,7 +157,10 @@ public:
     /// has no native packet kernel.
     void visible8(const VisibilityBatch& b, bool out[8]) const;
 
-    /// Samples a point on an emitter by power then area (u_sel picks the triangle, u the point).
+    /// Samples a point on an emitter by power then area (u_sel picks the
+    /// triangle, u the point), or with the environment's share of the power
+    /// (see environment_selection()) a direction to the environment (an
+    /// infinite LightSample, u picking the direction).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
     /// The point sample_light() would pick with the same numbers, with the
     /// radiance its front side emits: where a light subpath starts.
@@ -167,8 +181,31 @@ public:
     bool cut_out(uint32_t prim, float b1, float b2) const;
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
-    /// True if the scene has any emitter.
-    bool has_lights() const { return !buckets_.empty(); }
+    /// True if the scene has any emitter (an environment counts).
+    bool has_lights() const { return !buckets_.empty() || env_ != nullptr; }
+
+    /// Installs an environment emitter (nullptr removes it) and recomputes
+    /// the light selection: the environment is one more light, picked with
+    /// probability environment_selection(). Not synchronised: set it only
+    /// while no render runs.
+    void set_environment(std::shared_ptr<const Environment> env);
+    /// The environment emitter, or nullptr.
+    const Environment* environment() const { return env_.get(); }
+    /// Probability (unitless) with which sample_light() picks the environment:
+    /// its estimated power over the scene's total. An environment's power is
+    /// taken as that crossing the scene's bounding disk, pi r^2 times the
+    /// integral of its radiance over the sphere, against pi L A for an
+    /// emitting triangle (as pbrt-v4's power light sampler estimates them),
+    /// both in luminance. This over-estimates an environment seen only
+    /// through windows, which then gets more samples than it earns.
+    float environment_selection() const { return env_select_; }
+    /// True if u_sel, a light-selection number of sample_light(), picks the environment.
+    bool picks_environment(float u_sel) const { return env_ && u_sel < env_select_; }
+    /// Solid-angle density (1/sr) with which sample_light() picks direction w
+    /// (unit, towards the environment) from any point: selection included; 0 without an environment.
+    float environment_pdf(const Vec3& w) const { return env_ ? env_select_ * env_->pdf(w) : 0.f; }
+    /// Centre of the bounding sphere of bounding_radius() (scene units).
+    const Vec3& bounds_center() const { return center_; }
     /// True if light-sample prefetching pays: the emitters and their alias
     /// table exceed what stays in the first-level cache. With a few emitters
     /// the prefetches only cost instructions.
@@ -267,6 +304,17 @@ private:
     RayObserver* observer_ = nullptr;
     bool packets4_ = false;  // Embree traces 4-ray packets natively
     bool packets8_ = false;  // ... and 8-ray packets
+    // The environment's members come last: the ray and light-sample paths'
+    // members keep their places (and cache lines).
+    Vec3 center_{0.f};
+    std::shared_ptr<const Environment> env_;  // see set_environment()
+    float env_select_ = 0.f;                  // environment_selection()
+    // sample_light()'s environment branch, u_sel already tested.
+    LightSample sample_environment(const Vec3& ref, const Vec2& u) const;
+    // sample_light() (ref given) and sample_emitter_point() (ref null) in a scene with an environment.
+    [[gnu::noinline]] LightSample sample_with_environment(const Vec3* ref, float u_sel, const Vec2& u) const;
+    // The triangle both pick with u_sel once past the environment's share.
+    LightSample sample_triangle(float u_sel, const Vec2& u) const;
     template <int N, class RayHitN, class IntersectN>
     void intersect_packet(const Ray* rays, const bool* active, SurfaceInteraction* const* si, bool* hit,
                           IntersectN intersect_n) const;
