@@ -34,7 +34,7 @@
 //                     integrator itself has no parameter for the L1 schedule.
 //   --weighted NAME:k=v,...  a row "gpt-NAME" reconstructed by poisson-weighted with
 //                     these parameters (repeatable); replaces the default rows
-//                     gpt-w2 (norm=l2) and gpt-w1 (norm=l1).
+//                     gpt-w1 (poisson-weighted's defaults: L1) and gpt-w2 (norm=l2).
 //   --no-bdpt         leaves BDPT out (a third of the run time).
 #include <algorithm>
 #include <chrono>
@@ -175,7 +175,7 @@ Options parse(int argc, char** argv) {
                         "  --scene       any scene file (repeatable), named by its stem or NAME=\n"
                         "  --set         a gpt integrator parameter (not 'reconstruct': the benchmark times the solves)\n"
                         "  --l1-set      a poisson-l1 parameter, e.g. preset=reference, iterations=N\n"
-                        "  --weighted    NAME:k=v,... a poisson-weighted row gpt-NAME (default rows w2: norm=l2, w1: norm=l1)\n"
+                        "  --weighted    NAME:k=v,... a poisson-weighted row gpt-NAME (default rows w1: its defaults, w2: norm=l2)\n"
                         "  --no-bdpt     leave BDPT out\n"
                         "G-PT times include the reconstruction: equal time charges everything.\n"
                         "built-in scenes:");
@@ -193,7 +193,7 @@ Options parse(int argc, char** argv) {
         if (o.scenes.empty()) o.scenes = {builtin_scene("cbox-original"), builtin_scene("cbox-glossy")};
     }
     if (o.scenes.empty()) o.scenes = kAllScenes;
-    if (o.weighted.empty()) o.weighted = {{"gpt-w2", "norm=l2"}, {"gpt-w1", "norm=l1"}};
+    if (o.weighted.empty()) o.weighted = {{"gpt-w1", ""}, {"gpt-w2", "norm=l2"}};
     // Two scenes of one name would write over each other's outputs.
     for (size_t i = 0; i < o.scenes.size(); ++i)
         for (size_t j = 0; j < i; ++j)
@@ -479,7 +479,7 @@ int main(int argc, char** argv) try {
         weighted_params.push_back(make_weighted_params(row, sets));
         const std::string desc = one_line(reconstructor_registry().create("poisson-weighted", weighted_params.back())->describe());
         settings += "; " + row + ": poisson-weighted " + desc;
-        methods.push_back(row), labels.push_back("G-PT + weighted " + row.substr(4) + " (" + sets + ")");
+        methods.push_back(row), labels.push_back("G-PT + weighted " + row.substr(4) + " (" + (sets.empty() ? "defaults" : sets) + ")");
         colors.push_back(kWeightedColors[i % (sizeof kWeightedColors / sizeof kWeightedColors[0])]);
     }
     const int kNumMethods = int(methods.size());

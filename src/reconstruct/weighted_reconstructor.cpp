@@ -27,10 +27,11 @@ public:
                                      ", got " + std::to_string(v));
             return int(v);
         };
-        norm_ = p.get_choice("norm", "l2", {"l2", "l1"});
+        const WeightedOptions def;
+        norm_ = p.get_choice("norm", def.norm == WeightedNorm::l1 ? "l1" : "l2", {"l2", "l1"});
         outliers_ = p.get_choice("outliers", "drop", {"drop", "downweight", "none"});
         fallback_ = p.get_choice("fallback", "none", {"none", "tile"});
-        energy_ = p.get_choice("energy", norm_ == "l1" ? "lowpass" : "none", {"none", "mean", "lowpass"});
+        energy_ = p.get_choice("energy", "lowpass", {"none", "mean", "lowpass"});
         o_.norm = norm_ == "l1" ? WeightedNorm::l1 : WeightedNorm::l2;
         o_.outliers = outliers_ == "drop" ? OutlierMode::drop
                       : outliers_ == "downweight" ? OutlierMode::downweight
@@ -44,6 +45,7 @@ public:
         o_.tile = integer("tile", o_.tile, 1, 1 << 16);
         o_.kappa = real("kappa", o_.kappa, 1e-6, 1e6);
         o_.energy_radius = integer("energy_radius", o_.energy_radius, 1, 1 << 12);
+        o_.energy_clip = real("energy_clip", o_.energy_clip, 0.0, 1e6);
         o_.irls_iterations = integer("irls_iterations", o_.irls_iterations, 0, 1000);
         o_.eps = real("eps", o_.eps, 1e-6, 1e6);
         o_.cg_iterations = integer("cg_iterations", o_.cg_iterations, 2, 100000);
@@ -53,7 +55,8 @@ public:
     std::string describe() const override {
         std::ostringstream os;
         os.precision(17);
-        os << "cg_iterations=" << o_.cg_iterations << "\nenergy=" << energy_ << "\nenergy_radius=" << o_.energy_radius
+        os << "cg_iterations=" << o_.cg_iterations << "\nenergy=" << energy_ << "\nenergy_clip=" << o_.energy_clip
+           << "\nenergy_radius=" << o_.energy_radius
            << "\neps=" << o_.eps << "\nfallback=" << fallback_ << "\nirls_iterations=" << o_.irls_iterations
            << "\nkappa=" << o_.kappa << "\nnorm=" << norm_ << "\noutliers=" << outliers_
            << "\nprimal_scale=" << o_.primal_scale << "\ntau=" << o_.tau << "\ntile=" << o_.tile
@@ -101,7 +104,7 @@ void register_weighted_reconstructors(Registry<Reconstructor>& r) {
     r.add("poisson-weighted",
           "screened Poisson weighted by inverse variances (needs primal_variance, dx_variance, dy_variance, spp), "
           "outlier gradients dropped; norm (l2 | l1), outliers (drop | downweight | none), tau, fallback (none | "
-          "tile), tile, kappa, energy (none | mean | lowpass), energy_radius, primal_scale, variance_radius, "
+          "tile), tile, kappa, energy (none | mean | lowpass), energy_radius, energy_clip, primal_scale, variance_radius, "
           "variance_floor, irls_iterations, eps, cg_iterations, tolerance",
           [](const Params& p) { return std::make_unique<PoissonWeighted>(p); });
 }

@@ -22,7 +22,10 @@
 //    agree does not get an unbounded weight;
 //  - every variance has a floor, a fraction of the image's mean variance;
 //  - the weights of one residual row are shared by its channels (the mean of
-//    the channel variances), as the unweighted solvers share theirs.
+//    the channel variances), as the unweighted solvers share theirs;
+//  - a pixel of one sample has no variance estimate: it takes the image's
+//    mean variances, or, if no pixel has two samples, the weights of
+//    poisson-l2 (alpha 0.2), and its rows are not tested for outliers.
 //
 // Outliers: a gradient row is tested against the difference of the two
 // primal pixels it joins, both being estimates of the same difference:
@@ -97,19 +100,27 @@ enum class EnergyMode {
     lowpass,  ///< Plus the box-filtered (primal - result) of radius energy_radius.
 };
 
-/// Settings of poisson_variance_weighted; defaults as registered for "poisson-weighted".
+/// Settings of poisson_variance_weighted; defaults as registered for
+/// "poisson-weighted", chosen by bench_equal_time on the bundled scenes
+/// (README, "Variance-weighted reconstruction"): among the variants measured,
+/// L1 with r = 2 and a lowpass tie of R = 24 had the lowest relMSE on
+/// average; R = 8 spread fireflies of veach-mis's primal visibly, the global
+/// mean tie lost at 2 spp on the Cornell box, r = 0 and r = 3 were worse.
 struct WeightedOptions {
-    WeightedNorm norm = WeightedNorm::l2;        ///< Penalty of the rows.
+    WeightedNorm norm = WeightedNorm::l1;        ///< Penalty of the rows.
     double primal_scale = 1.0;                   ///< Extra factor on every colour weight (unitless, > 0).
-    int variance_radius = 1;                     ///< r of the neighbourhood guard on variances (pixels, >= 0).
+    int variance_radius = 2;                     ///< r of the neighbourhood guard on variances (pixels, >= 0).
     double variance_floor = 1e-3;                ///< Variance floor as a fraction of the mean variance (> 0).
     OutlierMode outliers = OutlierMode::drop;    ///< Treatment of outlier gradient rows.
     double tau = 4.0;                            ///< Outlier threshold on z (standard deviations, > 0).
     bool tile_fallback = false;                  ///< Drop the gradients of tiles where they do not pay.
     int tile = 16;                               ///< Fallback tile size (pixels, >= 1).
     double kappa = 1.0;                          ///< Fallback ratio (unitless, > 0), see the file comment.
-    EnergyMode energy = EnergyMode::none;        ///< Low-frequency tie to the primal.
-    int energy_radius = 8;                       ///< R of EnergyMode::lowpass (pixels, >= 1).
+    EnergyMode energy = EnergyMode::lowpass;     ///< Low-frequency tie to the primal.
+    int energy_radius = 24;                      ///< R of EnergyMode::lowpass (pixels, >= 1).
+    /// Bound on each pixel's (primal - result) before the lowpass filter, in
+    /// neighbourhood standard deviations of the primal mean; 0 = none.
+    double energy_clip = 0.0;
     int irls_iterations = 5;                     ///< IRLS steps of the L1 form after the L2 solve.
     double eps = 1.0;                            ///< L1 knee, in standard deviations of each row (> 0).
     int cg_iterations = 100;                     ///< Most CG iterations of the L2 solve (each IRLS step: a tenth, >= 2).
@@ -137,7 +148,9 @@ RowWeights inverse_variance_weights(const VarianceProblem& problem, const Weight
 /// The weighted reconstruction into `out` (interleaved, radiance, shape of
 /// the inputs): weights as inverse_variance_weights, solved by multigrid-
 /// preconditioned CG from the exact unweighted (alpha 0.2) L2 solution,
-/// then IRLS for the L1 form and the energy tie. Throws RuntimeFailure
+/// then IRLS for the L1 form and the energy tie. With one sample in every
+/// pixel (no variance estimate anywhere) and neither mask nor fallback, it
+/// is poisson_l1 (alpha 0.2, default L1Options) plus the energy tie. Throws RuntimeFailure
 /// naming the pixel if the result is not finite.
 WeightedReport poisson_variance_weighted(const VarianceProblem& problem, const WeightedOptions& options, float* out);
 
