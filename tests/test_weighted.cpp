@@ -89,6 +89,7 @@ const std::vector<Params>& all_variants() {
         params({{"norm", "l1"}, {"fallback", "tile"}, {"outliers", "downweight"}, {"energy", "mean"}}),
         params({{"norm", "l2"}, {"energy", "none"}, {"variance_radius", "1"}}),
         params({{"energy_clip", "3"}, {"energy_radius", "2"}}),
+        params({{"guard", "median"}, {"variance_radius", "1"}}),
     };
     return v;
 }

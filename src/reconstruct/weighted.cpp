@@ -52,6 +52,34 @@ std::vector<float> box_mean(const std::vector<float>& v, const std::vector<unsig
     return out;
 }
 
+/// Median over the (2r+1)^2 box around each pixel of the entries with
+/// valid[k] != 0 (all if valid is empty), clipped at the border; 0 where a
+/// box holds no valid entry. Unlike the mean, one firefly's variance does
+/// not raise its neighbours'.
+std::vector<float> box_median(const std::vector<float>& v, const std::vector<unsigned char>& valid, int w, int h, int r) {
+    std::vector<float> out(size_t(w) * h);
+    tbb::parallel_for(0, h, [&](int y) {
+        std::vector<float> win;
+        win.reserve(size_t(2 * r + 1) * (2 * r + 1));
+        for (int x = 0; x < w; ++x) {
+            win.clear();
+            for (int yy = std::max(0, y - r); yy <= std::min(h - 1, y + r); ++yy)
+                for (int xx = std::max(0, x - r); xx <= std::min(w - 1, x + r); ++xx) {
+                    const size_t k = size_t(yy) * w + xx;
+                    if (valid.empty() || valid[k]) win.push_back(v[k]);
+                }
+            if (win.empty()) {
+                out[size_t(y) * w + x] = 0.f;
+                continue;
+            }
+            auto mid = win.begin() + win.size() / 2;
+            std::nth_element(win.begin(), mid, win.end());
+            out[size_t(y) * w + x] = *mid;
+        }
+    });
+    return out;
+}
+
 /// Guarded variances of the means of every row and their inverse-variance weights.
 struct Rows {
     int w = 0, h = 0, c = 0;
@@ -110,12 +138,14 @@ Rows build_rows(const VarianceProblem& P, const WeightedOptions& o, WeightedRepo
         for (size_t k = 0; k < n; ++k)
             if (unknown[k]) vp[k] = up, vx[k] = ug, vy[k] = ug;
     }
-    // Neighbourhood guard: max(own, box mean).
+    // Neighbourhood guard: max(own, neighbourhood mean or median).
     if (o.variance_radius > 0) {
         const std::vector<unsigned char> all;
-        const std::vector<float> bp = box_mean(vp, all, w, h, o.variance_radius),
-                                 bx = box_mean(vx, R.ux, w, h, o.variance_radius),
-                                 by = box_mean(vy, R.uy, w, h, o.variance_radius);
+        const bool med = o.guard == VarianceGuard::median;
+        auto nb = [&](const std::vector<float>& v, const std::vector<unsigned char>& valid) {
+            return med ? box_median(v, valid, w, h, o.variance_radius) : box_mean(v, valid, w, h, o.variance_radius);
+        };
+        const std::vector<float> bp = nb(vp, all), bx = nb(vx, R.ux), by = nb(vy, R.uy);
         for (size_t k = 0; k < n; ++k)
             vp[k] = std::max(vp[k], bp[k]), vx[k] = std::max(vx[k], bx[k]), vy[k] = std::max(vy[k], by[k]);
     }

@@ -31,6 +31,8 @@ public:
         norm_ = p.get_choice("norm", def.norm == WeightedNorm::l1 ? "l1" : "l2", {"l2", "l1"});
         outliers_ = p.get_choice("outliers", "drop", {"drop", "downweight", "none"});
         fallback_ = p.get_choice("fallback", "none", {"none", "tile"});
+        guard_ = p.get_choice("guard", def.guard == VarianceGuard::median ? "median" : "mean", {"mean", "median"});
+        o_.guard = guard_ == "median" ? VarianceGuard::median : VarianceGuard::mean;
         energy_ = p.get_choice("energy", "lowpass", {"none", "mean", "lowpass"});
         o_.norm = norm_ == "l1" ? WeightedNorm::l1 : WeightedNorm::l2;
         o_.outliers = outliers_ == "drop" ? OutlierMode::drop
@@ -57,7 +59,8 @@ public:
         os.precision(17);
         os << "cg_iterations=" << o_.cg_iterations << "\nenergy=" << energy_ << "\nenergy_clip=" << o_.energy_clip
            << "\nenergy_radius=" << o_.energy_radius
-           << "\neps=" << o_.eps << "\nfallback=" << fallback_ << "\nirls_iterations=" << o_.irls_iterations
+           << "\neps=" << o_.eps << "\nfallback=" << fallback_ << "\nguard=" << guard_
+           << "\nirls_iterations=" << o_.irls_iterations
            << "\nkappa=" << o_.kappa << "\nnorm=" << norm_ << "\noutliers=" << outliers_
            << "\nprimal_scale=" << o_.primal_scale << "\ntau=" << o_.tau << "\ntile=" << o_.tile
            << "\ntolerance=" << o_.tolerance << "\nvariance_floor=" << o_.variance_floor
@@ -94,7 +97,7 @@ private:
         os << v;
         return os.str();
     }
-    std::string norm_, outliers_, fallback_, energy_;
+    std::string norm_, outliers_, fallback_, energy_, guard_;
     WeightedOptions o_;
 };
 
@@ -104,7 +107,7 @@ void register_weighted_reconstructors(Registry<Reconstructor>& r) {
     r.add("poisson-weighted",
           "screened Poisson weighted by inverse variances (needs primal_variance, dx_variance, dy_variance, spp), "
           "outlier gradients dropped; norm (l2 | l1), outliers (drop | downweight | none), tau, fallback (none | "
-          "tile), tile, kappa, energy (none | mean | lowpass), energy_radius, energy_clip, primal_scale, variance_radius, "
+          "tile), tile, kappa, energy (none | mean | lowpass), energy_radius, energy_clip, primal_scale, variance_radius, guard (mean | median), "
           "variance_floor, irls_iterations, eps, cg_iterations, tolerance",
           [](const Params& p) { return std::make_unique<PoissonWeighted>(p); });
 }

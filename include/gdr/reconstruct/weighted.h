@@ -100,6 +100,12 @@ enum class EnergyMode {
     lowpass,  ///< Plus the box-filtered (primal - result) of radius energy_radius.
 };
 
+/// The neighbourhood statistic that bounds each variance from below.
+enum class VarianceGuard {
+    mean,    ///< Box mean: also raises the neighbours of a firefly.
+    median,  ///< Box median: a single firefly's variance stays its own.
+};
+
 /// Settings of poisson_variance_weighted; defaults as registered for
 /// "poisson-weighted", chosen by bench_equal_time on the bundled scenes
 /// (README, "Variance-weighted reconstruction"): among the variants measured,
@@ -110,6 +116,7 @@ struct WeightedOptions {
     WeightedNorm norm = WeightedNorm::l1;        ///< Penalty of the rows.
     double primal_scale = 1.0;                   ///< Extra factor on every colour weight (unitless, > 0).
     int variance_radius = 2;                     ///< r of the neighbourhood guard on variances (pixels, >= 0).
+    VarianceGuard guard = VarianceGuard::mean;   ///< Statistic of the neighbourhood guard.
     double variance_floor = 1e-3;                ///< Variance floor as a fraction of the mean variance (> 0).
     OutlierMode outliers = OutlierMode::drop;    ///< Treatment of outlier gradient rows.
     double tau = 4.0;                            ///< Outlier threshold on z (standard deviations, > 0).
