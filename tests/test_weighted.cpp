@@ -7,10 +7,12 @@
 #include <cmath>
 #include <random>
 
+#include "gdr/io/exr.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/reconstruct/weighted.h"
 #include "block_stats.h"
+#include "cli_test_util.h"
 
 using namespace gdr;
 
@@ -335,4 +337,24 @@ TEST_CASE("poisson-weighted refuses missing or bad variance layers, naming them"
                         Catch::Contains("spp") && Catch::Contains("(1, 3)"));
     REQUIRE_THROWS_AS(reconstruct("poisson-weighted", params({{"norm", "l3"}}), noiseless(clean_image(6, 5, 3, 1)).buffers()),
                       ParameterError);
+}
+
+TEST_CASE("gdr reconstruct runs poisson-weighted on the layers of a gpt render file", "[reconstruct][weighted][cli]") {
+    const test::OutDir out("weighted-cli");
+    REQUIRE(cli::run({"render", GDR_SOURCE_DIR "/tests/scenes/cornell-small.json", "--integrator", "gpt", "--spp", "4",
+                      "--set", "reconstruct=none", "-o", out("g.exr")}) == 0);
+    REQUIRE(cli::run({"reconstruct", out("g.exr"), "--method", "poisson-weighted", "--set", "norm=l2", "-o",
+                      out("w.exr")}) == 0);
+    // The same as the library call on the file's layers.
+    const FrameBuffer fb = read_exr(out("g.exr"));
+    Params p("test");
+    p.set_from_text("norm=l2");
+    const Image expect = reconstruct("poisson-weighted", p, gradient_buffers(fb));
+    CHECK(read_exr(out("w.exr")).get("color").values() == expect.values());
+    // Without the variance layers it is refused, naming them.
+    FrameBuffer bare(fb.width(), fb.height());
+    for (const char* layer : {"primal", "dx", "dy", "direct"}) bare.set(layer, fb.get(layer));
+    write_exr(out("bare.exr"), bare);
+    CHECK_THAT(test::error_of({"reconstruct", out("bare.exr"), "--method", "poisson-weighted", "-o", out("x.exr")}),
+               Catch::Contains("bare.exr") && Catch::Contains("primal_variance"));
 }
