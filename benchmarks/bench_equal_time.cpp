@@ -1,4 +1,5 @@
-// Equal-time comparison of PT, G-PT + L1, G-PT + L2 and BDPT on real scenes.
+// Equal-time comparison of PT, G-PT + L1, G-PT + L2, G-PT + variance-weighted
+// Poisson (L2 and L1 forms) and BDPT on real scenes.
 //
 // For each scene: a cached high-spp PT reference, then for every time budget
 // of a geometric series one PT, one G-PT and one BDPT render (interleaved, so
@@ -16,6 +17,7 @@
 // Usage: bench_equal_time [--quick] [--references-only] [--refresh-references]
 //          [--scenes a,b] [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..]
 //          [--ref-spp N] [--set key=value]... [--l1-set key=value]...
+//          [--weighted NAME:key=value,...]... [--no-bdpt]
 //          [--out DIR] [--cache DIR] [--docs DIR] [--threads N]
 //
 //   --scenes a,b      built-in scenes by name (see --help); all six by default
@@ -30,6 +32,10 @@
 //                     preset=reference (the reference implementation's slow L1D)
 //                     or iterations, cg_iterations, tolerance (repeatable). The gpt
 //                     integrator itself has no parameter for the L1 schedule.
+//   --weighted NAME:k=v,...  a row "gpt-NAME" reconstructed by poisson-weighted with
+//                     these parameters (repeatable); replaces the default rows
+//                     gpt-w1 (poisson-weighted's defaults: L1) and gpt-w2 (norm=l2).
+//   --no-bdpt         leaves BDPT out (a third of the run time).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -80,6 +86,8 @@ struct Options {
     bool quick = false, references_only = false, refresh = false;
     std::vector<SceneSpec> scenes;  // in the order given
     std::vector<std::string> gpt_sets, l1_sets;  // "key=value" texts, in the order given
+    std::vector<std::pair<std::string, std::string>> weighted;  // (row name, "k=v,k=v") of poisson-weighted rows
+    bool bdpt = true;
     // 192 px and 8 s keep the full run, references included, near 20 minutes on 2 cores.
     int width = 192;
     std::vector<double> budgets{0.25, 0.5, 1, 2, 4, 8};
@@ -141,6 +149,14 @@ Options parse(int argc, char** argv) {
         } else if (a == "--scene") o.scenes.push_back(scene_option(next()));
         else if (a == "--set") o.gpt_sets.push_back(next());
         else if (a == "--l1-set") o.l1_sets.push_back(next());
+        else if (a == "--weighted") {
+            const std::string v = next();
+            const size_t colon = v.find(':');
+            const std::string name = v.substr(0, colon);
+            if (name.empty() || name.find_first_of(",/\\ ") != std::string::npos)
+                throw ParameterError("--weighted '" + v + "': expected NAME:key=value,... with a plain NAME");
+            o.weighted.push_back({"gpt-" + name, colon == std::string::npos ? "" : v.substr(colon + 1)});
+        } else if (a == "--no-bdpt") o.bdpt = false;
         else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
             o.budgets.clear();
@@ -159,6 +175,8 @@ Options parse(int argc, char** argv) {
                         "  --scene       any scene file (repeatable), named by its stem or NAME=\n"
                         "  --set         a gpt integrator parameter (not 'reconstruct': the benchmark times the solves)\n"
                         "  --l1-set      a poisson-l1 parameter, e.g. preset=reference, iterations=N\n"
+                        "  --weighted    NAME:k=v,... a poisson-weighted row gpt-NAME (default rows w1: its defaults, w2: norm=l2)\n"
+                        "  --no-bdpt     leave BDPT out\n"
                         "G-PT times include the reconstruction: equal time charges everything.\n"
                         "built-in scenes:");
             for (const SceneSpec& s : kAllScenes) std::printf(" %s", s.name.c_str());
@@ -175,6 +193,7 @@ Options parse(int argc, char** argv) {
         if (o.scenes.empty()) o.scenes = {builtin_scene("cbox-original"), builtin_scene("cbox-glossy")};
     }
     if (o.scenes.empty()) o.scenes = kAllScenes;
+    if (o.weighted.empty()) o.weighted = {{"gpt-w1", ""}, {"gpt-w2", "norm=l2"}};
     // Two scenes of one name would write over each other's outputs.
     for (size_t i = 0; i < o.scenes.size(); ++i)
         for (size_t j = 0; j < i; ++j)
@@ -271,6 +290,7 @@ struct Row {
     double budget = 0, seconds = 0, render_s = 0, solve_s = 0;
     long long spp = 0;
     double relmse = 0, mse = 0, ssim = 0;
+    double mean_dev = 0;  // image mean / reference mean - 1, the worst channel
 };
 
 struct Equal {
@@ -278,10 +298,32 @@ struct Equal {
     double e_pt = 0, e_l1 = 0, e_l2 = 0, budget = 0;
 };
 
-constexpr int kNumMethods = 5;
-const char* const kMethods[kNumMethods] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal", "bdpt"};
-const Rgb8 kColors[kNumMethods] = {{30, 30, 30}, {215, 48, 39}, {44, 123, 182}, {120, 170, 90}, {150, 80, 170}};
-const char* const kLabels[kNumMethods] = {"PT", "G-PT + L1", "G-PT + L2", "G-PT primal (no solve)", "BDPT"};
+// The fixed methods; the poisson-weighted rows (--weighted) follow them.
+constexpr int kNumFixed = 5;
+const char* const kFixedMethods[kNumFixed] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal", "bdpt"};
+const Rgb8 kFixedColors[kNumFixed] = {{30, 30, 30}, {215, 48, 39}, {44, 123, 182}, {120, 170, 90}, {150, 80, 170}};
+const char* const kFixedLabels[kNumFixed] = {"PT", "G-PT + L1", "G-PT + L2", "G-PT primal (no solve)", "BDPT"};
+const Rgb8 kWeightedColors[] = {{230, 145, 30}, {0, 150, 150}, {200, 60, 150}, {110, 110, 0}, {90, 90, 220}, {160, 100, 40}};
+
+// The parameters of a poisson-weighted row: alpha is not one of them (the colour weights come from the variances).
+Params make_weighted_params(const std::string& row, const std::string& sets) {
+    Params p("bench_equal_time --weighted " + row);
+    for (const std::string& kv : split(sets)) p.set_from_text(kv);
+    return p;
+}
+
+// Per channel mean of img over the mean of ref, minus 1, the channel farthest from 0 (unitless).
+double mean_deviation(const Image& img, const Image& ref) {
+    double worst = 0;
+    for (int c = 0; c < 3; ++c) {
+        double a = 0, b = 0;
+        for (int y = 0; y < ref.height(); ++y)
+            for (int x = 0; x < ref.width(); ++x) a += img.at(x, y, c), b += ref.at(x, y, c);
+        const double d = b > 0 ? a / b - 1.0 : 0.0;
+        if (std::abs(d) > std::abs(worst)) worst = d;
+    }
+    return worst;
+}
 
 // The crop window (size s, stride s/4) where PT's relative squared error is largest:
 // where the methods differ most visibly.
@@ -427,18 +469,34 @@ int main(int argc, char** argv) try {
     // Created once here so that a misspelt key ends the run before any reference is rendered.
     const std::string gpt_desc = one_line(integrator_registry().create("gpt", gpt_params)->describe());
     const std::string l1_desc = one_line(reconstructor_registry().create("poisson-l1", l1_params)->describe());
-    const std::string settings = "G-PT: " + gpt_desc + "; L1 solve: " + l1_desc;
+    std::string settings = "G-PT: " + gpt_desc + "; L1 solve: " + l1_desc;
+    // Method names, labels and colours: the fixed ones, then the weighted rows.
+    std::vector<std::string> methods(kFixedMethods, kFixedMethods + kNumFixed), labels(kFixedLabels, kFixedLabels + kNumFixed);
+    std::vector<Rgb8> colors(kFixedColors, kFixedColors + kNumFixed);
+    std::vector<Params> weighted_params;
+    for (size_t i = 0; i < o.weighted.size(); ++i) {
+        const auto& [row, sets] = o.weighted[i];
+        weighted_params.push_back(make_weighted_params(row, sets));
+        const std::string desc = one_line(reconstructor_registry().create("poisson-weighted", weighted_params.back())->describe());
+        settings += "; " + row + ": poisson-weighted " + desc;
+        methods.push_back(row), labels.push_back("G-PT + weighted " + row.substr(4) + " (" + (sets.empty() ? "defaults" : sets) + ")");
+        colors.push_back(kWeightedColors[i % (sizeof kWeightedColors / sizeof kWeightedColors[0])]);
+    }
+    const int kNumMethods = int(methods.size());
     std::printf("%s\n%s\n", settings.c_str(), kTimeCharge);
     const auto t_start = Clock::now();
     std::vector<Row> rows;
     std::ostringstream summary;
     summary << kTimeCharge << "\n\n" << settings << "\n\n";
     summary << "| scene | resolution | PT relMSE at " << o.budgets.back()
-            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up | BDPT speed-up |\n"
-            << "|---|---|---|---|---|---|---|---|\n";
+            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up | BDPT speed-up |";
+    for (size_t i = kNumFixed; i < methods.size(); ++i) summary << " " << methods[i] << " speed-up |";
+    summary << "\n|---|---|---|---|---|---|---|---|";
+    for (size_t i = kNumFixed; i < methods.size(); ++i) summary << "---|";
+    summary << "\n";
     std::vector<std::string> console;
     std::ofstream csv(fs::path(o.out) / "results.csv");
-    csv << "scene,width,height,method,budget_s,seconds,render_s,solve_s,spp,relmse,mse,ssim\n";
+    csv << "scene,width,height,method,budget_s,seconds,render_s,solve_s,spp,relmse,mse,ssim,mean_dev\n";
     // t_method_s: interpolated (or, flagged, extrapolated) time to reach target_relmse.
     std::ofstream speed(fs::path(o.out) / "speedups.csv");
     speed << "scene,method,target_relmse,t_pt_s,t_method_s,how,speedup,reported\n";
@@ -469,21 +527,23 @@ int main(int argc, char** argv) try {
         const double l1_est = since(t0);
         std::printf("  L1 solve %.3f s at this resolution\n", l1_est);
 
-        std::vector<CurvePoint> curve[kNumMethods];
+        std::vector<std::vector<CurvePoint>> curve(kNumMethods);
+        std::vector<std::vector<double>> at_budget(kNumMethods);  // relMSE per budget index
         Equal eq;
         const size_t crop_i = o.budgets.size() / 2;
         eq.budget = o.budgets[crop_i];
         auto add = [&](int m, double budget, double secs, double render_s, double solve_s, long long spp, const Image& img) {
-            Row r{spec.name, kMethods[m], W, H, budget, secs, render_s, solve_s, spp, relmse(img, ref, RelMseOptions::thesis()),
-                  mse(img, ref), ssim(img, ref)};
+            Row r{spec.name, methods[m], W, H, budget, secs, render_s, solve_s, spp, relmse(img, ref, RelMseOptions::thesis()),
+                  mse(img, ref), ssim(img, ref), mean_deviation(img, ref)};
             rows.push_back(r);
             curve[m].push_back({secs, r.relmse});
+            at_budget[m].push_back(r.relmse);
             csv << r.scene << ',' << r.width << ',' << r.height << ',' << r.method << ',' << r.budget << ',' << r.seconds
                 << ',' << r.render_s << ',' << r.solve_s << ',' << r.spp << ',' << r.relmse << ',' << r.mse << ','
-                << r.ssim << '\n';
+                << r.ssim << ',' << r.mean_dev << '\n';
             csv.flush();
-            std::printf("  %-10s budget %6.2f s  time %7.3f s  %5lld spp  relMSE %.4g\n", kMethods[m], budget, secs, spp,
-                        r.relmse);
+            std::printf("  %-10s budget %6.2f s  time %7.3f s  %5lld spp  relMSE %.4g  mean %+.2f%%\n", methods[m].c_str(),
+                        budget, secs, spp, r.relmse, 100.0 * r.mean_dev);
             return r.relmse;
         };
         for (size_t i = 0; i < o.budgets.size(); ++i) {
@@ -513,6 +573,13 @@ int main(int argc, char** argv) try {
             const double e2 = add(2, T, render_s + s2, render_s, s2, rs.spp, l2);
             add(3, T, render_s, render_s, 0, rs.spp, fb.get("color"));
             if (i == crop_i) eq.l1 = std::move(l1), eq.l2 = std::move(l2), eq.e_l1 = e1, eq.e_l2 = e2;
+            for (size_t v = 0; v < weighted_params.size(); ++v) {
+                t0 = Clock::now();
+                Image wimg = reconstruct("poisson-weighted", weighted_params[v], gb);
+                const double sw = since(t0);
+                add(kNumFixed + int(v), T, render_s + sw, render_s, sw, rs.spp, wimg);
+            }
+            if (!o.bdpt) continue;
 
             st.seed = uint64_t(1001 + i);
             st.time_budget = T;
@@ -524,28 +591,38 @@ int main(int argc, char** argv) try {
 
         // Speed-up at PT's error at the largest budget.
         const CurvePoint last = curve[0].back();
-        const ReachTime r1 = time_to_reach(curve[1], last.error), r2 = time_to_reach(curve[2], last.error),
-                        r3 = time_to_reach(curve[3], last.error), r4 = time_to_reach(curve[4], last.error);
+        std::vector<ReachTime> reach(kNumMethods);
+        std::vector<std::string> sp(kNumMethods, "-");
+        for (int m = 1; m < kNumMethods; ++m)
+            if (!curve[m].empty()) reach[m] = time_to_reach(curve[m], last.error), sp[m] = fmt_speedup(last.seconds, reach[m], curve[m]);
         char line[512];
         std::snprintf(line, sizeof line, "%-14s PT relMSE %.4g at %.1f s (ref own %.2g) | L1 %s | L2 %s | primal %s | BDPT %s",
-                      spec.name.c_str(), last.error, last.seconds, ref_self, fmt_speedup(last.seconds, r1, curve[1]).c_str(),
-                      fmt_speedup(last.seconds, r2, curve[2]).c_str(), fmt_speedup(last.seconds, r3, curve[3]).c_str(),
-                      fmt_speedup(last.seconds, r4, curve[4]).c_str());
-        console.push_back(line);
-        std::printf("  %s\n", line);
+                      spec.name.c_str(), last.error, last.seconds, ref_self, sp[1].c_str(), sp[2].c_str(), sp[3].c_str(),
+                      sp[4].c_str());
+        std::string wline = line;
+        // Each weighted row: speed-up, the largest relMSE ratio to PT at an equal budget, the largest mean deviation.
+        for (int m = kNumFixed; m < kNumMethods; ++m) {
+            double worst = 0;
+            for (size_t i = 0; i < at_budget[m].size(); ++i) worst = std::max(worst, at_budget[m][i] / at_budget[0][i]);
+            char b[200];
+            std::snprintf(b, sizeof b, " | %s %s (worst relMSE/PT %.2f)", methods[m].c_str(), sp[m].c_str(), worst);
+            wline += b;
+        }
+        console.push_back(wline);
+        std::printf("  %s\n", wline.c_str());
         char cell[96];
         std::snprintf(cell, sizeof cell, "%.3g", last.error);
         summary << "| " << spec.name << " | " << W << "x" << H << " | " << cell << " | ";
         std::snprintf(cell, sizeof cell, "%.2g", ref_self);
-        summary << cell << " | " << fmt_speedup(last.seconds, r1, curve[1]) << " | " << fmt_speedup(last.seconds, r2, curve[2])
-                << " | " << fmt_speedup(last.seconds, r3, curve[3]) << " | " << fmt_speedup(last.seconds, r4, curve[4])
-                << " |\n";
-        const ReachTime* reach[kNumMethods] = {nullptr, &r1, &r2, &r3, &r4};
+        summary << cell << " |";
+        for (int m = 1; m < kNumMethods; ++m) summary << " " << sp[m] << " |";
+        summary << "\n";
         for (int m = 1; m < kNumMethods; ++m) {
+            if (curve[m].empty()) continue;
             double v = 0;
-            const std::string txt = fmt_speedup(last.seconds, *reach[m], curve[m], &v);
-            speed << spec.name << ',' << kMethods[m] << ',' << last.error << ',' << last.seconds << ','
-                  << reach[m]->seconds << ',' << to_string(reach[m]->how) << ',' << v << ",\"" << txt << "\"\n";
+            const std::string txt = fmt_speedup(last.seconds, reach[m], curve[m], &v);
+            speed << spec.name << ',' << methods[m] << ',' << last.error << ',' << last.seconds << ','
+                  << reach[m].seconds << ',' << to_string(reach[m].how) << ',' << v << ",\"" << txt << "\"\n";
         }
         speed.flush();
 
@@ -553,7 +630,8 @@ int main(int argc, char** argv) try {
         plot.title = spec.name + "  " + std::to_string(W) + "x" + std::to_string(H);
         plot.xlabel = "wall time per image [s] (G-PT: render + reconstruction)";
         plot.ylabel = "relMSE (eps 0.01)";
-        for (int m = 0; m < kNumMethods; ++m) plot.series.push_back({kLabels[m], kColors[m], curve[m], m == 3});
+        for (int m = 0; m < kNumMethods; ++m)
+            if (!curve[m].empty()) plot.series.push_back({labels[m], colors[m], curve[m], m == 3});
         plot.xticks = o.budgets;
         plot.hline = last.error;
         plot.hline_label = "PT at the largest budget";

@@ -53,15 +53,23 @@ void check_gradient_buffers(const GradientBuffers& in) {
                              (!in.primal ? "primal " : "") + (!in.dx ? "dx " : "") + (!in.dy ? "dy" : ""));
     if (in.primal->empty()) throw ParameterError("reconstruction: the primal image is empty");
     const std::pair<const Image*, const char*> layers[] = {
-        {in.primal, "primal"}, {in.dx, "dx"}, {in.dy, "dy"}, {in.direct, "direct"}};
+        {in.primal, "primal"},           {in.dx, "dx"},
+        {in.dy, "dy"},                   {in.direct, "direct"},
+        {in.primal_variance, "primal_variance"}, {in.dx_variance, "dx_variance"},
+        {in.dy_variance, "dy_variance"}};
     for (const auto& [img, name] : layers) {
         if (!img) continue;
         if (!img->same_shape(*in.primal))
             throw ParameterError(std::string("reconstruction: layer '") + name + "' is " + shape_text(*img) +
                                  " but primal is " + shape_text(*in.primal));
     }
+    if (in.spp && (in.spp->width() != in.primal->width() || in.spp->height() != in.primal->height() ||
+                   in.spp->channels() != 1))
+        throw ParameterError("reconstruction: layer 'spp' is " + shape_text(*in.spp) + " but must be " +
+                             std::to_string(in.primal->width()) + "x" + std::to_string(in.primal->height()) + "x1");
     for (const auto& [img, name] : layers)
         if (img) check_finite(*img, name);
+    if (in.spp) check_finite(*in.spp, "spp");
 }
 
 Image Reconstructor::reconstruct(const GradientBuffers& in) const {
@@ -95,7 +103,10 @@ Image Reconstructor::reconstruct(const GradientBuffers& in) const {
     return out;
 }
 
-void register_builtin_reconstructors(Registry<Reconstructor>& r) { register_poisson_reconstructors(r); }
+void register_builtin_reconstructors(Registry<Reconstructor>& r) {
+    register_poisson_reconstructors(r);
+    register_weighted_reconstructors(r);
+}
 
 Registry<Reconstructor>& reconstructor_registry() {
     return process_registry<Reconstructor>("reconstructor", register_builtin_reconstructors);
@@ -134,8 +145,11 @@ GradientBuffers gradient_buffers(const FrameBuffer& fb) {
             throw InputError(std::string("frame buffer has no layer '") + name + "' (layers: " +
                              (list.empty() ? "none" : list) + ")");
         }
-    return GradientBuffers{&fb.get("primal"), &fb.get("dx"), &fb.get("dy"),
-                           fb.has("direct") ? &fb.get("direct") : nullptr};
+    auto optional = [&](const char* name) { return fb.has(name) ? &fb.get(name) : nullptr; };
+    GradientBuffers gb{&fb.get("primal"), &fb.get("dx"), &fb.get("dy"), optional("direct")};
+    gb.primal_variance = optional("primal_variance"), gb.dx_variance = optional("dx_variance");
+    gb.dy_variance = optional("dy_variance"), gb.spp = optional("spp");
+    return gb;
 }
 
 }  // namespace gdr

@@ -26,6 +26,12 @@ struct GradientBuffers {
     const Image* dx = nullptr;      ///< Horizontal forward differences (see file comment).
     const Image* dy = nullptr;      ///< Vertical forward differences, y down.
     const Image* direct = nullptr;  ///< Optional: directly visible emitters, added after solving.
+    // Optional layers for methods that weight by variance (poisson-weighted);
+    // all of primal's shape except spp, which has one channel.
+    const Image* primal_variance = nullptr;  ///< Per-sample variance of primal (radiance^2).
+    const Image* dx_variance = nullptr;      ///< Per-sample variance of dx (radiance^2).
+    const Image* dy_variance = nullptr;      ///< Per-sample variance of dy (radiance^2).
+    const Image* spp = nullptr;              ///< Samples per pixel behind the means (1 channel, >= 1).
 };
 
 /// Owning storage of one frame's buffers; `direct` is empty when absent.
@@ -39,9 +45,9 @@ struct GradientFrame {
     GradientBuffers buffers() const;
 };
 
-/// Throws ParameterError if primal / dx / dy are missing or the four buffers
-/// differ in shape, and InputError naming the layer and the first pixel if
-/// any of them holds NaN or Inf.
+/// Throws ParameterError if primal / dx / dy are missing or the buffers
+/// present differ in shape (spp: width x height x 1), and InputError naming
+/// the layer and the first pixel if any of them holds NaN or Inf.
 void check_gradient_buffers(const GradientBuffers& in);
 
 /// A reconstruction method. reconstruct() checks the input, adds `direct` and
@@ -71,6 +77,11 @@ Registry<Reconstructor>& reconstructor_registry();
 /// Adds gdr's built-in reconstructors to a registry (poisson-l2, poisson-l1, ...).
 void register_builtin_reconstructors(Registry<Reconstructor>& r);
 
+/// Adds "poisson-weighted" (variance-weighted, outlier-robust screened
+/// Poisson; needs the variance and spp layers; see gdr/reconstruct/weighted.h
+/// and the registry description for its parameters).
+void register_weighted_reconstructors(Registry<Reconstructor>& r);
+
 /// Adds "poisson-l2" (exact DCT solve; parameter alpha) and "poisson-l1"
 /// (IRLS with multigrid-preconditioned CG; alpha, iterations, cg_iterations,
 /// tolerance as in L1Options, and preset = fast (default) | reference, the
@@ -87,8 +98,9 @@ Image reconstruct(const std::string& method, const Params& params, const Gradien
 /// naming the missing file.
 GradientFrame load_reference_layout(const std::string& prefix);
 
-/// Views of the layers "primal", "dx", "dy" and optional "direct" of a gdr
-/// frame buffer (valid while `fb` lives); InputError naming a missing layer.
+/// Views of the layers "primal", "dx", "dy" and the optional "direct",
+/// "primal_variance", "dx_variance", "dy_variance" and "spp" of a gdr frame
+/// buffer (valid while `fb` lives); InputError naming a missing layer.
 GradientBuffers gradient_buffers(const FrameBuffer& fb);
 
 }  // namespace gdr
