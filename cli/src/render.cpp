@@ -387,7 +387,8 @@ int render(const std::vector<std::string>& args) {
     std::string layers;
     for (const auto& n : fb.names()) layers += " " + n;
     say("wrote {} (layers:{}){}\n", out_path, layers, preview.empty() ? "" : " and " + preview);
-    if (g_abort && fb.has("dx") && !fb.has("reconstruction_l1") && !fb.has("reconstruction_l2"))
+    if (g_abort && fb.has("dx") && !fb.has("reconstruction_weighted") && !fb.has("reconstruction_l1") &&
+        !fb.has("reconstruction_l2"))
         say("the reconstructions were skipped to stop at once: gdr reconstruct {} computes one, and --resume or "
             "gdr merge recompute them\n", out_path);
     return interrupted ? 128 + (g_signal ? g_signal.load() : SIGINT) : 0;  // the shell's convention

@@ -294,8 +294,10 @@ std::string write_render(const std::string& out, const FrameBuffer& fb, float ex
 }
 
 std::string preview_layer(const FrameBuffer& fb) {
-    // A gradient-domain render is shown as its L1 reconstruction, anything else as its colour.
-    return fb.has("reconstruction_l1") ? "reconstruction_l1" : fb.has("color") ? "color" : fb.names().front();
+    // A gradient-domain render is shown as its variance-weighted (else L1) reconstruction, anything else as its colour.
+    for (const char* name : {"reconstruction_weighted", "reconstruction_l1", "color"})
+        if (fb.has(name)) return name;
+    return fb.names().front();
 }
 
 std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {

@@ -244,9 +244,13 @@ public:
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         batch_ = batch_param(p, "gpt", kMaxBatch);
-        const std::string rec = p.get_choice("reconstruct", "l1+l2", {"l1+l2", "l1", "l2", "none"});
-        solve_l1_ = rec == "l1+l2" || rec == "l1";
-        solve_l2_ = rec == "l1+l2" || rec == "l2";
+        // The variance-weighted solve is the final image (the benchmark's
+        // best, docs/performance.md); L1 and L2 stay, the anchors' methods.
+        const std::string rec =
+            p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "none"});
+        solve_weighted_ = rec == "all" || rec == "weighted";
+        solve_l1_ = rec == "all" || rec == "l1+l2" || rec == "l1";
+        solve_l2_ = rec == "all" || rec == "l1+l2" || rec == "l2";
         alpha_ = p.get_real("alpha", 0.2);
         if (!(alpha_ > 0.0)) throw ParameterError("gpt: alpha must be positive");
         if (!(config_.threshold >= 0.f)) throw ParameterError("gpt: threshold must be >= 0");
@@ -258,7 +262,8 @@ public:
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_vertices) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
                "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" +
-               (solve_l1_ ? (solve_l2_ ? "l1+l2" : "l1") : (solve_l2_ ? "l2" : "none")) +
+               (solve_weighted_ ? (solve_l1_ ? "all" : "weighted")
+                                : solve_l1_ ? (solve_l2_ ? "l1+l2" : "l1") : (solve_l2_ ? "l2" : "none")) +
                "\nalpha=" + fmt::format("{}", alpha_) + "\n";
     }
 
@@ -380,21 +385,29 @@ protected:
         out.set("primal_variance", primal_both_ ? std::move(primal_var) : std::move(im[5]));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
-        if (acc.derived) reconstruct_layers(out);
+        if (acc.derived) reconstruct_layers(out, acc.spp);
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
     }
 
 public:
-    void update_merged(FrameBuffer& merged) const override { reconstruct_layers(merged); }
+    void update_merged(FrameBuffer& merged) const override { reconstruct_layers(merged, 0); }
 
 private:
     // The reconstructions of the buffer's primal and gradients, each with the
-    // directly visible emitters added back.
-    void reconstruct_layers(FrameBuffer& fb) const {
-        GradientBuffers gb;
-        gb.primal = &fb.get("primal"), gb.dx = &fb.get("dx"), gb.dy = &fb.get("dy"), gb.direct = &fb.get("direct");
+    // directly visible emitters added back. The weighted one reads the
+    // variances and the sample counts: `spp`, where the buffer has no spp
+    // layer yet (a render's own finalize(); TiledIntegrator adds it after).
+    void reconstruct_layers(FrameBuffer& fb, int64_t spp) const {
+        GradientBuffers gb = gradient_buffers(fb);
+        Image spp_image;
+        if (!gb.spp && spp > 0) {
+            spp_image = Image(fb.width(), fb.height(), 1);
+            std::fill(spp_image.values().begin(), spp_image.values().end(), float(spp));
+            gb.spp = &spp_image;
+        }
+        if (solve_weighted_) fb.set("reconstruction_weighted", reconstruct("poisson-weighted", Params("gpt"), gb));
         Params rp("gpt");
         rp.set("alpha", alpha_);
         if (solve_l1_) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
@@ -459,7 +472,7 @@ private:
     WalkOptions trace_;
     bool primal_both_ = true;
     int batch_ = kMaxBatch;
-    bool solve_l1_ = true, solve_l2_ = true;
+    bool solve_weighted_ = true, solve_l1_ = true, solve_l2_ = true;
     double alpha_ = 0.2;
 };
 
