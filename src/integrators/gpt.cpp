@@ -9,7 +9,6 @@
 #include <tbb/parallel_for.h>
 
 #include "gdr/path/dims.h"
-#include "gdr/path/environment.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/trace.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -58,7 +57,7 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
             T.emit = beta * T.emitted;
             T.emit_pdf_bsdf = P.bs.pdf;
             if (!P.bs.is_delta() && x.nee[k - 1].valid && !is_black(T.emitted))
-                T.emit_pdf_light = light_pdf_w(scene, P.si.p, X.si);
+                T.emit_pdf_light = X.infinite ? double(scene.environment_pdf(-X.si.ng)) : light_pdf_w(scene, P.si.p, X.si);
         }
         if (nee.valid) {
             const LightSample& ls = nee.light;
@@ -152,8 +151,9 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
                 // The offset's densities weigh the base even where the offset itself contributes nothing.
                 b_b = double(S.pdf) * S.jacobian;
                 const OffsetVertex& Yp = y->v[k - 1].y;
-                if (!S.delta && Y.y.si.is_emitter() && scene.has_lights() && !Yp.si.material->pure_delta)
-                    b_l = light_pdf_w(scene, Yp.si.p, Y.y.si) * S.jacobian;
+                if (!S.delta && (Y.y.infinite || Y.y.si.is_emitter()) && scene.has_lights() && !Yp.si.material->pure_delta)
+                    b_l = (Y.y.infinite ? double(scene.environment_pdf(-Y.y.si.ng)) : light_pdf_w(scene, Yp.si.p, Y.y.si)) *
+                          S.jacobian;
             }
             if (!is_black(T.emit) || !is_black(cy))
                 add(e, gradient_mis_weight(mis, T.emit_pdf_bsdf, T.emit_pdf_light, b_b, b_l, r_prev), T.emit, cy);
@@ -289,7 +289,6 @@ protected:
     }
 
     int batch_size() const override { return batch_; }
-    void prepare(const Scene& scene) override { require_no_environment(scene, "gpt"); }
 
     void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                       uint64_t& rays) const override {
@@ -454,6 +453,7 @@ private:
         float* aux = out + 3 * kAux;
         for (size_t k = 1; k < path.size(); ++k) {
             const Vertex& v = path.v[k];
+            if (v.infinite) break;  // left the scene: no surface
             if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
                 &v != &path.v.back())
                 continue;
@@ -462,7 +462,7 @@ private:
             aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
             break;
         }
-        aux[6] = path.v[1].si.t;
+        aux[6] = path.v[1].infinite ? 0.f : path.v[1].si.t;  // a camera ray that left the scene: 0, as pt writes
     }
 
     std::unique_ptr<Shift> shift_;

@@ -82,7 +82,7 @@ bool connect_environment(const Scene& scene, const Vertex& pt, const LightSample
 void require_no_environment(const Scene& scene, const std::string& integrator) {
     if (scene.environment())
         throw InputError(integrator + " does not support environment lights yet: the scene has one (constant or "
-                                      "envmap); render it with pt or bdpt, or remove the environment");
+                                      "envmap); remove it to use " + integrator);
 }
 
 }  // namespace gdr

@@ -19,6 +19,7 @@ struct RecordLightSamples {
         const size_t k = path.v.size() - 1;
         LightConnection& c = path.nee.emplace_back();
         const Vertex& x = path.v[k];
+        if (x.infinite) return;  // the path left the scene: no light sample there
         // A light sample at the last vertex would add a segment beyond max_depth.
         // A black surface gets its sample too (its value is 0, so it is not
         // traced): an offset on another surface shares it.

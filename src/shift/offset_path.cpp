@@ -75,6 +75,7 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     if (!nee.valid) return;
     const LightSample& ls = nee.light;
     const OffsetVertex& y = rec.y;
+    if (y.infinite) return;  // the offset left the scene: no light sample there
     const Bsdf& bsdf = *y.si.material->bsdf;
     if (y.on_base) {
         // Same vertex, same light segment (measured once for the base): only
@@ -107,6 +108,26 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
     const ShiftStepInput in{scene, config, base, k, y};
     if (!shift::base_connectable(in, k) || !shift::offset_connectable(in)) return;
     if (!(nee.pdf_w > 0.0)) return;  // the base cannot sample this light point (or sits on it)
+    if (ls.infinite) {
+        // A direction to the environment is shared in solid angle: the offset
+        // sees the same direction, radiance and light density (|J| = 1).
+        const Vec3 wi_world = -ls.n;
+        const Vec3 wi = y.si.frame.to_local(wi_world);
+        const BsdfEval fe = bsdf.eval_pdf(y.wo, wi, y.si.uv);
+        rec.nee = true;
+        rec.nee_cos = abs_cos_theta(wi);
+        rec.nee_f = fe.f;
+        rec.nee_pdf_bsdf = fe.pdf;
+        rec.nee_pdf_light_w = nee.pdf_w;
+        rec.nee_jacobian = 1.0;
+        if (!is_black(ls.radiance) && !is_black(fe.f)) {
+            ++path.rays;
+            const Vec3 far = y.si.p + wi_world * (2.f * (scene.bounding_radius() + glm::length(y.si.p - scene.bounds_center())));
+            const bool lit = DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, far, ls.n, {&path, k, false});
+            rec.nee_radiance = lit ? ls.radiance : Color(0.f);
+        }
+        return;
+    }
     const Vec3d pz(ls.p), nz(ls.n);
     const Vec3d dy = pz - Vec3d(y.si.p);
     const double ly2 = glm::dot(dy, dy);
@@ -146,6 +167,16 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         const bool lit = DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, ls.p, ls.n, {&path, k, false});
         rec.nee_radiance = lit ? le : Color(0.f);
     }
+}
+
+// Makes `v` the environment vertex that an offset ray `ray` reaches on leaving
+// the scene (path/environment.h's convention: ng the direction light travels).
+void set_on_environment(const Scene& scene, const Ray& ray, OffsetVertex& v) {
+    v.infinite = true;
+    v.si.ng = -ray.d;
+    v.si.frame = Frame(v.si.ng);
+    v.si.p = ray.o + ray.d * (2.f * (scene.bounding_radius() + glm::length(ray.o - scene.bounds_center())));
+    v.emitted = scene.environment()->eval(ray.d);
 }
 
 // Makes `v` the offset vertex that coincides with base vertex x_{k+1}, entered from `from`.
@@ -359,7 +390,14 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
         const bool reject_if_connectable = s.reject_if_connectable;
         ++out.rays;
         OffsetRecord& nr = out.v.emplace_back();  // invalidates `rec`, `y` and `s`
-        if (!scene.intersect(ray, nr.y.si) ||
+        const bool hit = scene.intersect(ray, nr.y.si);
+        if (!hit && scene.environment()) {
+            // Left the scene: the offset ends on the environment (its emitter
+            // term at k + 1 is all it has from here; its step there stays Fail).
+            set_on_environment(scene, ray, nr.y);
+            return;
+        }
+        if (!hit ||
             (reject_if_connectable &&
              is_connectable(nr.y.si.material->min_roughness, next.u_classify, config))) {
             // Escaped (no emitter at infinity) or the inverse would have reconnected: no offset beyond.

@@ -42,7 +42,11 @@ inline Color scatter_weight(const Vertex& x) {
     return x.bs.f * (abs_cos_theta(x.bs.wi) / (x.bs.pdf * x.rr_survival));
 }
 
-/// Radiance emitted by a surface vertex towards the previous vertex of its path (W/(m^2 sr); 0 if it does not emit).
-inline Color emitted(const Vertex& x) { return x.si.is_emitter() ? x.si.emitted(x.wo) : Color(0.f); }
+/// Radiance emitted by a surface vertex, or the environment vertex a path
+/// ends on, towards the previous vertex of its path (W/(m^2 sr); 0 if it does not emit).
+inline Color emitted(const Vertex& x) {
+    if (x.infinite) return x.le;
+    return x.si.is_emitter() ? x.si.emitted(x.wo) : Color(0.f);
+}
 
 }  // namespace gdr

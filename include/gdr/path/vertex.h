@@ -40,7 +40,7 @@ inline float roulette_survival(const Color& throughput) { return std::min(0.95f,
 /// A next-event (light) sample taken at a path vertex.
 struct LightConnection {
     bool valid = false;       ///< A sample was drawn (vertex had a non-delta lobe, scene has lights).
-    LightSample light;        ///< The point on the emitter (area measure, shared by offset paths).
+    LightSample light;        ///< The point on the emitter (area measure), or the environment's direction (solid angle); shared by offset paths.
     bool visible = false;     ///< Segment vertex -> light point unblocked; meaningful only if `tested`.
     /// The segment was traced: only where the sample contributes to the base
     /// (radiance and f nonzero), as a path tracer would; an offset that sees
@@ -68,9 +68,12 @@ struct LightConnection {
             dist = 0.f, wi = Vec3(0.f), pdf_w = 0.0, f = Color(0.f), pdf_bsdf = 0.f;
             return;
         }
-        const Vec3 w = d / dist;
+        // An environment sample is a direction, the same from every point
+        // (its light.p is only a far end for the shadow ray).
+        const Vec3 w = light.infinite ? -light.n : d / dist;
         wi = at.frame.to_local(w);
-        pdf_w = pdf_a_to_w(double(light.pdf_a), double(dist), double(glm::dot(light.n, w)));
+        pdf_w = light.infinite ? double(light.pdf_w)
+                               : pdf_a_to_w(double(light.pdf_a), double(dist), double(glm::dot(light.n, w)));
         const BsdfEval fe = at.material->bsdf->eval_pdf(wo, wi, at.uv);
         f = fe.f, pdf_bsdf = fe.pdf;
     }

@@ -43,6 +43,9 @@ struct OffsetVertex {
     Vec3 wo{0.f};                ///< Local direction from y_k towards y_{k-1}.
     Color emitted{0.f};          ///< Radiance emitted from y_k towards y_{k-1}.
     bool on_base = false;        ///< y_k is the base vertex x_k (reconnected just before k).
+    /// y_k is on the environment: the offset's ray left the scene along
+    /// -si.ng (environment.h's convention), and the offset ends here.
+    bool infinite = false;
 };
 
 /// Everything a shift step may look at: the base path, the current depth and the offset's vertex.

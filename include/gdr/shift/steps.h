@@ -10,12 +10,13 @@ namespace gdr::shift {
 /// Connectability of base vertex i (by its BSDF's roughness and its classification number).
 inline bool base_connectable(const ShiftStepInput& in, size_t i) {
     const Vertex& x = in.base.v[i];
-    return is_connectable(x.si.material->min_roughness, x.u_classify, in.config);
+    // A vertex on the environment is a direction: nothing reconnects to it.
+    return !x.infinite && is_connectable(x.si.material->min_roughness, x.u_classify, in.config);
 }
 
 /// Connectability of the offset vertex y_k (classified with the base's number at the same depth).
 inline bool offset_connectable(const ShiftStepInput& in) {
-    return is_connectable(in.y.si.material->min_roughness, in.base.v[in.k].u_classify, in.config);
+    return !in.y.infinite && is_connectable(in.y.si.material->min_roughness, in.base.v[in.k].u_classify, in.config);
 }
 
 /// True if the base continues to a vertex x_{k+1}.
