@@ -581,6 +581,14 @@ TEST_CASE("mitsuba: unsupported elements are errors naming file, line, element a
     const std::string gone = R"(<shape type="obj" id="gone"><string name="filename" value="gone.obj"/></shape>)";
     CHECK_THAT(x.error(gone + rect("")), Catch::Contains("id=\"gone\"") && Catch::Contains("gone.obj: file not found"));
     CHECK(x.load(gone + rect(""), lenient()).scene->mesh().size() == 2);
+    // A texture file that is missing: an error, or with --lenient mid-grey with a warning.
+    const std::string tex = R"(<bsdf type="diffuse" id="paper"><texture type="bitmap" name="reflectance">
+        <string name="filename" value="gone.jpg"/></texture></bsdf>)";
+    CHECK_THAT(x.error(rect(tex)), Catch::Contains("gone.jpg: file not found") && Catch::Contains("--lenient"));
+    const SceneFile grey_paper = x.load(rect(tex), lenient());
+    CHECK(any_warning(grey_paper, "mid-grey"));
+    CHECK(is_lambertian(bsdf_of(grey_paper), f));
+    CHECK(f.r == Approx(0.5f / 3.14159265f));  // f = albedo / pi
 }
 
 TEST_CASE("mitsuba: malformed XML and values are errors naming the line", "[mitsuba][errors]") {

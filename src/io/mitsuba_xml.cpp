@@ -905,6 +905,13 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
     const glm::mat3 uvm = get_uv_transform(p);
     const std::string file = file_path(n, name);
     std::shared_ptr<Texture> t;
+    if (const std::string why = detail::not_a_file(file); !why.empty()) {
+        // Published scenes (and their randomised variants) sometimes name
+        // textures they do not ship.
+        if (!opt_.lenient) fail(n, file + why + " (--lenient uses a constant in its place with a warning)");
+        warn(n, file + why + (opacity ? "; the surface is opaque (--lenient)" : "; it is mid-grey 0.5 (--lenient)"));
+        return make_constant_texture(Color(opacity ? 1.f : 0.5f));
+    }
     try {
         t = opacity ? load_opacity_texture(file, io) : load_image_texture(file, io);
     } catch (const InputError& e) {
