@@ -393,6 +393,7 @@ private:
     void reconstruct_layers(FrameBuffer& fb) const {
         GradientBuffers gb;
         gb.primal = &fb.get("primal"), gb.dx = &fb.get("dx"), gb.dy = &fb.get("dy"), gb.direct = &fb.get("direct");
+        gb.layers = &fb;
         Params rp("gpt");
         rp.set("alpha", alpha_);
         if (solve_l1_) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));

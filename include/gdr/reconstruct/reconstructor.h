@@ -13,6 +13,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
@@ -26,6 +27,14 @@ struct GradientBuffers {
     const Image* dx = nullptr;      ///< Horizontal forward differences (see file comment).
     const Image* dy = nullptr;      ///< Vertical forward differences, y down.
     const Image* direct = nullptr;  ///< Optional: directly visible emitters, added after solving.
+    /// Optional: the frame buffer holding further layers (albedo, normal,
+    /// depth, variances...) that a method may ask for by name; nullptr if none.
+    const FrameBuffer* layers = nullptr;
+
+    /// The layer called `name`: the fields above for "primal", "dx", "dy" and
+    /// "direct" (these win over `layers`), otherwise that layer of `layers`;
+    /// nullptr if absent.
+    const Image* layer(const std::string& name) const;
 };
 
 /// Owning storage of one frame's buffers; `direct` is empty when absent.
@@ -59,6 +68,11 @@ public:
     /// The method's parameters as "key=value" lines (for file headers).
     virtual std::string describe() const = 0;
 
+    /// Names of the layers beyond primal / dx / dy that solve() reads through
+    /// GradientBuffers::layer(); reconstruct() checks that each is present,
+    /// shaped like primal and finite (InputError naming a missing one).
+    virtual std::vector<std::string> required_layers() const { return {}; }
+
 protected:
     /// Reconstructs from checked, finite, equally shaped primal / dx / dy;
     /// must not add `direct` nor check the result (the caller does both).
@@ -88,7 +102,8 @@ Image reconstruct(const std::string& method, const Params& params, const Gradien
 GradientFrame load_reference_layout(const std::string& prefix);
 
 /// Views of the layers "primal", "dx", "dy" and optional "direct" of a gdr
-/// frame buffer (valid while `fb` lives); InputError naming a missing layer.
+/// frame buffer, with `layers` = &fb for the rest (valid while `fb` lives);
+/// InputError naming a missing layer.
 GradientBuffers gradient_buffers(const FrameBuffer& fb);
 
 }  // namespace gdr
