@@ -9,21 +9,24 @@
 # policy-rc.d denies it for the duration of the install) and their services
 # are left disabled, so the machine runs no Slurm or munge daemon afterwards.
 # Failing to install them is reported and stops nothing; GDR_SKIP_OPTIONAL=1
-# leaves them out.
+# leaves them out. libtorch-dev, for the optional neural reconstructor, is
+# handled likewise (CMake skips that target without it).
 set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
           libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev)
 optional=(slurm-wlm munge)
+optional_neural=(libtorch-dev)
 installed() {
     # Installed means "install ok installed"; a removed package can leave its status entry behind.
     dpkg -s "$1" 2>/dev/null | grep -q '^Status: install ok installed'
 }
-missing=() missing_optional=()
+missing=() missing_optional=() missing_neural=()
 for p in "${packages[@]}"; do installed "$p" || missing+=("$p"); done
 if [[ ${GDR_SKIP_OPTIONAL:-0} != 1 ]]; then
     for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
+    for p in "${optional_neural[@]}"; do installed "$p" || missing_neural+=("$p"); done
 fi
-if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0)); then
+if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0 && ${#missing_neural[@]} == 0)); then
     echo "install-deps: all build dependencies are installed"
     exit 0
 fi
@@ -34,6 +37,11 @@ export DEBIAN_FRONTEND=noninteractive
 if ((${#missing[@]} > 0)); then
     echo "install-deps: installing ${missing[*]}"
     "${sudo[@]}" apt-get install -y --no-install-recommends "${missing[@]}" </dev/null
+fi
+if ((${#missing_neural[@]} > 0)); then
+    echo "install-deps: installing the optional ${missing_neural[*]} (for the neural reconstructor)"
+    "${sudo[@]}" apt-get install -y --no-install-recommends "${missing_neural[@]}" </dev/null ||
+        echo "install-deps: warning: could not install ${missing_neural[*]}; the neural reconstructor will be skipped" >&2
 fi
 ((${#missing_optional[@]} > 0)) || exit 0
 
