@@ -7,7 +7,8 @@
 # benchmarks and without the neural reconstructor (it uses no SIMD code of
 # gdr's, and compiling against libtorch twice would double its cost), so the
 # scalar build also checks that gdr builds and tests without it. The Slurm
-# test (tests/slurm.sh) runs where slurm-wlm and munge are installed and the user is root, and is reported as skipped elsewhere.
+# test (tests/slurm.sh) runs where slurm-wlm and munge are installed and the
+# user is root, and is reported as skipped elsewhere.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 # What the suite will skip, said up front (ctest's summary lists it again at
