@@ -226,8 +226,10 @@ int validate(int argc, char** argv) {
         if (e.path().filename().string().rfind("crop-", 0) == 0) files.push_back(e.path().string());
     std::sort(files.begin(), files.end());
     if (files.empty()) throw InputError("validate: no crop-*.exr in " + dir);
-    struct Sums { double noisy = 0, l1 = 0, net = 0; int n = 0; };
-    std::map<int, Sums> by_spp;
+    // Per view and sample count; the mean is dominated by a few views with
+    // fireflies, so the median is printed too.
+    struct Values { std::vector<double> noisy, l1, net; };
+    std::map<int, Values> by_spp;
     for (const auto& f : files) {
         const FrameBuffer fb = read_exr(f);
         for (const int s : split_ints(fb.metadata().at("spp"), "spp")) {
@@ -236,18 +238,27 @@ int validate(int argc, char** argv) {
                 frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
             const GradientBuffers gb = gradient_buffers(frame);
             const Image& target = fb.get("target");
-            Sums& sum = by_spp[s];
-            sum.noisy += relmse(frame.get("primal"), target);
-            sum.l1 += relmse(reconstruct("poisson-l1", Params("validate"), gb), target);
-            sum.net += relmse(infer(net, gb), target);
-            ++sum.n;
+            Values& v = by_spp[s];
+            v.noisy.push_back(relmse(frame.get("primal"), target));
+            v.l1.push_back(relmse(reconstruct("poisson-l1", Params("validate"), gb), target));
+            v.net.push_back(relmse(infer(net, gb), target));
         }
     }
-    fmt::print("relMSE (eps 0.01, per channel, mean over {} views of {}):\n", files.size(), dir);
-    fmt::print("{:>6} {:>12} {:>12} {:>12} {:>10}\n", "spp", "noisy", "poisson-l1", "neural", "neural/l1");
+    const auto mean = [](const std::vector<double>& x) {
+        double m = 0.0;
+        for (double v : x) m += v / double(x.size());
+        return m;
+    };
+    const auto median = [](std::vector<double> x) {
+        std::sort(x.begin(), x.end());
+        return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
+    };
+    fmt::print("relMSE (eps 0.01, per channel) over {} views of {}: mean | median over views\n", files.size(), dir);
+    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>16}\n", "spp", "noisy", "poisson-l1", "neural", "neural/l1");
     for (const auto& [s, v] : by_spp)
-        fmt::print("{:>6} {:>12.5f} {:>12.5f} {:>12.5f} {:>10.3f}\n", s, v.noisy / v.n, v.l1 / v.n, v.net / v.n,
-                   v.net / v.l1);
+        fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>7.3f} {:>8.3f}\n", s, mean(v.noisy),
+                   median(v.noisy), mean(v.l1), median(v.l1), mean(v.net), median(v.net), mean(v.net) / mean(v.l1),
+                   median(v.net) / median(v.l1));
     return 0;
 }
 

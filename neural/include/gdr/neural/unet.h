@@ -41,6 +41,7 @@ struct UNetConfig {
     /// network (10 channels) that measures what the gradients add.
     bool gradients = true;
 
+    /// Same shape (same widths and inputs).
     bool operator==(const UNetConfig&) const = default;
 };
 
@@ -68,6 +69,7 @@ private:
     std::vector<torch::nn::Conv2d> enc_a_, enc_b_, down_, up_, dec_a_, dec_b_;
     torch::nn::Conv2d out_{nullptr};
 };
+/// Shared handle of a UNetImpl (torch's module-holder convention: copies share the weights).
 TORCH_MODULE(UNet);
 
 /// log(1 + max(0, x)): the colour encoding (radiance -> unitless).
