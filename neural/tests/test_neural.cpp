@@ -249,3 +249,22 @@ TEST_CASE("training is deterministic and a resumed run equals an uninterrupted o
     Trainer mismatched(other, set);
     REQUIRE_THROWS_WITH(mismatched.load_checkpoint(dir.file("ckpt.pt")), Catch::Contains("batch=3"));
 }
+
+TEST_CASE("the shipped model loads and reconstructs odd-sized frames to finite images", "[neural]") {
+    torch::set_num_threads(1);
+    Registry<Reconstructor> reg("reconstructor");
+    register_neural_reconstructor(reg);
+    Params p("test");
+    p.set("weights", std::string(GDR_SOURCE_DIR) + "/neural/models/unet-v0.pt");
+    p.set("threads", 1LL);
+    const auto rec = reg.create("neural", p);
+    REQUIRE_THAT(rec->describe(), Catch::Contains("widths=16,32,48,64") && Catch::Contains("gradients=true"));
+    for (auto [w, h] : {std::pair{1, 1}, std::pair{7, 13}, std::pair{21, 10}}) {
+        INFO(w << "x" << h);
+        const FrameBuffer fb = noisy_frame(clean_image(w, h, 30), 0.3f, 31);
+        const Image out = rec->reconstruct(gradient_buffers(fb));
+        REQUIRE(out.width() == w);
+        REQUIRE(out.height() == h);
+        for (float v : out.values()) REQUIRE((std::isfinite(v) && v >= 0.f));
+    }
+}
