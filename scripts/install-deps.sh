@@ -10,25 +10,28 @@
 # are left disabled, so the machine runs no Slurm or munge daemon afterwards.
 # And python3-dev, pybind11-dev, python3-numpy and python3-matplotlib, for the
 # Python module and its example (without them the module is not built and its
-# tests are reported as skipped).
-# Failing to install either group is reported and stops nothing;
-# GDR_SKIP_OPTIONAL=1 leaves both out.
+# tests are reported as skipped), and libtorch-dev, for the optional neural
+# reconstructor (CMake skips that target without it).
+# Failing to install any of these groups is reported and stops nothing;
+# GDR_SKIP_OPTIONAL=1 leaves them all out.
 set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
           libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev)
 optional=(slurm-wlm munge)
 optional_python=(python3-dev pybind11-dev python3-numpy python3-matplotlib)
+optional_neural=(libtorch-dev)
 installed() {
     # Installed means "install ok installed"; a removed package can leave its status entry behind.
     dpkg -s "$1" 2>/dev/null | grep -q '^Status: install ok installed'
 }
-missing=() missing_optional=() missing_python=()
+missing=() missing_optional=() missing_python=() missing_neural=()
 for p in "${packages[@]}"; do installed "$p" || missing+=("$p"); done
 if [[ ${GDR_SKIP_OPTIONAL:-0} != 1 ]]; then
     for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
     for p in "${optional_python[@]}"; do installed "$p" || missing_python+=("$p"); done
+    for p in "${optional_neural[@]}"; do installed "$p" || missing_neural+=("$p"); done
 fi
-if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0 && ${#missing_python[@]} == 0)); then
+if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0 && ${#missing_python[@]} == 0 && ${#missing_neural[@]} == 0)); then
     echo "install-deps: all build dependencies are installed"
     exit 0
 fi
@@ -44,6 +47,11 @@ if ((${#missing_python[@]} > 0)); then
     echo "install-deps: installing the optional ${missing_python[*]} (for the Python module)"
     "${sudo[@]}" apt-get install -y --no-install-recommends "${missing_python[@]}" </dev/null ||
         echo "install-deps: warning: could not install ${missing_python[*]}; the Python module and its tests will be skipped" >&2
+fi
+if ((${#missing_neural[@]} > 0)); then
+    echo "install-deps: installing the optional ${missing_neural[*]} (for the neural reconstructor)"
+    "${sudo[@]}" apt-get install -y --no-install-recommends "${missing_neural[@]}" </dev/null ||
+        echo "install-deps: warning: could not install ${missing_neural[*]}; the neural reconstructor will be skipped" >&2
 fi
 ((${#missing_optional[@]} > 0)) || exit 0
 

@@ -744,3 +744,64 @@ TEST_CASE("IRLS gives an outlier gradient a tiny weight, never zero or NaN", "[r
             if (y + 1 < 16) REQUIRE((std::isfinite(at_l2.dy[k]) && at_l2.dy[k] > 0.f));
         }
 }
+
+namespace {
+
+/// A reconstructor that reads one extra layer by name and returns primal
+/// plus that layer's first channel: shows that the front end delivers,
+/// checks and reports the layers a method asks for.
+class PlusLayer final : public Reconstructor {
+public:
+    explicit PlusLayer(std::string name) : name_(std::move(name)) {}
+    std::string describe() const override { return "test=plus-layer\n"; }
+    std::vector<std::string> required_layers() const override { return {name_}; }
+
+protected:
+    Image solve(const GradientBuffers& in) const override {
+        Image out = *in.primal;
+        const Image& extra = *in.layer(name_);
+        for (int y = 0; y < out.height(); ++y)
+            for (int x = 0; x < out.width(); ++x)
+                for (int c = 0; c < out.channels(); ++c) out.at(x, y, c) += extra.at(x, y, 0);
+        return out;
+    }
+
+private:
+    std::string name_;
+};
+
+}  // namespace
+
+TEST_CASE("a reconstructor reads the extra layers it asks for by name, and a missing one is named", "[reconstruct][layers]") {
+    const Image c = test_image(7, 5, 3, 77);
+    auto [gx, gy] = gradients_of(c);
+    FrameBuffer fb(7, 5);
+    fb.set("primal", c), fb.set("dx", gx), fb.set("dy", gy);
+    Image depth(7, 5, 1);
+    for (int y = 0; y < 5; ++y)
+        for (int x = 0; x < 7; ++x) depth.at(x, y, 0) = float(x + 10 * y);
+    fb.set("depth", depth);
+    const GradientBuffers in = gradient_buffers(fb);
+    REQUIRE(in.layers == &fb);
+    REQUIRE(in.layer("depth") == &fb.get("depth"));
+    REQUIRE(in.layer("primal") == in.primal);
+    REQUIRE(in.layer("albedo") == nullptr);
+    const Image out = PlusLayer("depth").reconstruct(in);
+    REQUIRE(out.at(3, 2, 1) == c.at(3, 2, 1) + 23.f);
+    // Absent: named, with the layers that are there.
+    REQUIRE_THROWS_AS(PlusLayer("albedo").reconstruct(in), InputError);
+    REQUIRE_THROWS_WITH(PlusLayer("albedo").reconstruct(in),
+                        Catch::Contains("'albedo'") && Catch::Contains("depth"));
+    // Without a frame buffer only the four fixed fields exist.
+    REQUIRE_THROWS_WITH(PlusLayer("depth").reconstruct(GradientBuffers{&c, &gx, &gy, nullptr}),
+                        Catch::Contains("'depth'"));
+    // Wrong size and non-finite values of the extra layer are refused, naming it.
+    FrameBuffer small(3, 3);
+    small.add("depth", 1);
+    GradientBuffers with_small{&c, &gx, &gy, nullptr};
+    with_small.layers = &small;
+    REQUIRE_THROWS_WITH(PlusLayer("depth").reconstruct(with_small),
+                        Catch::Contains("'depth' is 3x3x1"));
+    fb.get("depth").at(4, 1, 0) = std::nanf("");
+    REQUIRE_THROWS_WITH(PlusLayer("depth").reconstruct(in), Catch::Contains("depth") && Catch::Contains("(4, 1)"));
+}

@@ -43,6 +43,14 @@ void check_finite(const Image& img, const std::string& layer) {
 
 }  // namespace
 
+const Image* GradientBuffers::layer(const std::string& name) const {
+    if (name == "primal") return primal;
+    if (name == "dx") return dx;
+    if (name == "dy") return dy;
+    if (name == "direct") return direct;
+    return layers && layers->has(name) ? &layers->get(name) : nullptr;
+}
+
 GradientBuffers GradientFrame::buffers() const {
     return GradientBuffers{&primal, &dx, &dy, direct.empty() ? nullptr : &direct};
 }
@@ -74,6 +82,22 @@ void check_gradient_buffers(const GradientBuffers& in) {
 
 Image Reconstructor::reconstruct(const GradientBuffers& in) const {
     check_gradient_buffers(in);
+    for (const std::string& name : required_layers()) {
+        const Image* img = in.layer(name);
+        if (!img) {
+            std::string list = "primal, dx, dy";
+            if (in.direct) list += ", direct";
+            if (in.layers)
+                for (const auto& n : in.layers->names())
+                    if (n != "primal" && n != "dx" && n != "dy" && n != "direct") list += ", " + n;
+            throw InputError("reconstruction needs the layer '" + name + "', which the input lacks (layers: " + list +
+                             ")");
+        }
+        if (img->width() != in.primal->width() || img->height() != in.primal->height())
+            throw ParameterError("reconstruction: layer '" + name + "' is " + shape_text(*img) + " but primal is " +
+                                 shape_text(*in.primal));
+        check_finite(*img, name);
+    }
     Image out = solve(in);
     if (!out.same_shape(*in.primal))
         throw RuntimeFailure("reconstructor returned a " + shape_text(out) + " image for " + shape_text(*in.primal) +
@@ -149,6 +173,7 @@ GradientBuffers gradient_buffers(const FrameBuffer& fb) {
     GradientBuffers gb{&fb.get("primal"), &fb.get("dx"), &fb.get("dy"), optional("direct")};
     gb.primal_variance = optional("primal_variance"), gb.dx_variance = optional("dx_variance");
     gb.dy_variance = optional("dy_variance"), gb.spp = optional("spp");
+    gb.layers = &fb;
     return gb;
 }
 

@@ -13,6 +13,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
@@ -32,6 +33,15 @@ struct GradientBuffers {
     const Image* dx_variance = nullptr;      ///< Per-sample variance of dx (radiance^2).
     const Image* dy_variance = nullptr;      ///< Per-sample variance of dy (radiance^2).
     const Image* spp = nullptr;              ///< Samples per pixel behind the means (1 channel, >= 1).
+
+    /// Optional: the frame buffer holding further layers (albedo, normal,
+    /// depth, variances...) that a method may ask for by name; nullptr if none.
+    const FrameBuffer* layers = nullptr;
+
+    /// The layer called `name`: the fields above for "primal", "dx", "dy" and
+    /// "direct" (these win over `layers`), otherwise that layer of `layers`;
+    /// nullptr if absent.
+    const Image* layer(const std::string& name) const;
 };
 
 /// Owning storage of one frame's buffers; `direct` is empty when absent.
@@ -64,6 +74,11 @@ public:
 
     /// The method's parameters as "key=value" lines (for file headers).
     virtual std::string describe() const = 0;
+
+    /// Names of the layers beyond primal / dx / dy that solve() reads through
+    /// GradientBuffers::layer(); reconstruct() checks that each is present,
+    /// shaped like primal and finite (InputError naming a missing one).
+    virtual std::vector<std::string> required_layers() const { return {}; }
 
 protected:
     /// Reconstructs from checked, finite, equally shaped primal / dx / dy;
@@ -100,7 +115,8 @@ GradientFrame load_reference_layout(const std::string& prefix);
 
 /// Views of the layers "primal", "dx", "dy" and the optional "direct",
 /// "primal_variance", "dx_variance", "dy_variance" and "spp" of a gdr frame
-/// buffer (valid while `fb` lives); InputError naming a missing layer.
+/// buffer, with `layers` = &fb for the rest (valid while `fb` lives);
+/// InputError naming a missing layer.
 GradientBuffers gradient_buffers(const FrameBuffer& fb);
 
 }  // namespace gdr

@@ -1,0 +1,311 @@
+// Data set rendering, training and checkpoints of the neural reconstructor
+// (gdr/neural/training.h).
+
+#include "gdr/neural/training.h"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <random>
+
+#include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/exr.h"
+#include "gdr/io/scene_file.h"
+
+namespace gdr::neural {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// SplitMix64 of a and b: independent streams per view, noise level, step.
+uint64_t mix(uint64_t a, uint64_t b) {
+    uint64_t z = a * 0x9e3779b97f4a7c15ull + b + 0x632be59bd9b4e019ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return z ^ (z >> 31);
+}
+
+/// A tensor entry of an archive. (InputArchive::read into a Tensor calls
+/// .device() on its argument, which fails on an undefined tensor.)
+torch::Tensor read_tensor(torch::serialize::InputArchive& ar, const std::string& key) {
+    c10::IValue v;
+    ar.read(key, v);
+    return v.toTensor();
+}
+
+const char* const kFrameLayers[] = {"primal", "dx", "dy", "albedo", "normal", "depth"};
+
+torch::Tensor planar(const Image& img, int channels) {
+    torch::Tensor t = torch::empty({img.height(), img.width(), channels}, torch::kFloat32);
+    float* o = t.data_ptr<float>();
+    for (int y = 0; y < img.height(); ++y)
+        for (int x = 0; x < img.width(); ++x)
+            for (int c = 0; c < channels; ++c) *o++ = img.at(x, y, c);
+    return t.permute({2, 0, 1}).contiguous();
+}
+
+/// A random view near the scene's own camera: the eye and the look-at
+/// point moved by up to 10% of their distance, the field of view narrowed
+/// log-uniformly to 12-50% (a zoomed-in crop has about the pixel footprint
+/// of the full-resolution frame), square, `size` pixels.
+CameraDesc random_view(const CameraDesc& base, int size, std::mt19937_64& rng) {
+    std::uniform_real_distribution<float> u(-1.f, 1.f), l(std::log(0.12f), std::log(0.5f));
+    CameraDesc d = base;
+    const float dist = glm::length(base.target - base.position);
+    const auto jitter = [&] {
+        Vec3 v;
+        do v = Vec3(u(rng), u(rng), u(rng));
+        while (glm::dot(v, v) > 1.f);
+        return v * (0.1f * dist);
+    };
+    d.position = base.position + jitter();
+    d.target = base.target + jitter();
+    d.fov_deg = base.fov_deg * std::exp(l(rng));
+    d.width = d.height = size;
+    return d;
+}
+
+}  // namespace
+
+void generate_dataset(const DatasetOptions& o, const std::string& dir, const std::function<void(int, int)>& progress) {
+    if (o.scenes.empty()) throw ParameterError("data set: no scenes given");
+    if (o.crops < 1 || o.size < 2 || o.spp.empty() || o.target_spp < 1)
+        throw ParameterError("data set: crops >= 1, size >= 2, at least one spp and target_spp >= 1 are needed");
+    fs::create_directories(dir);
+    std::map<size_t, SceneFile> scenes;
+    std::map<size_t, CameraDesc> cameras;
+    Params gp("data set gpt");
+    gp.set("reconstruct", std::string("none"));
+    auto gpt = integrator_registry().create("gpt", gp);
+    for (int i = 0; i < o.crops; ++i) {
+        const std::string path = fmt::format("{}/crop-{:05d}.exr", dir, i);
+        if (fs::exists(path)) {
+            if (progress) progress(i + 1, o.crops);
+            continue;
+        }
+        const size_t si = size_t(i) % o.scenes.size();
+        if (!scenes.count(si)) {
+            scenes[si] = load_scene_file(o.scenes[si]);
+            cameras[si] = scenes[si].scene->camera().desc();
+        }
+        Scene& scene = *scenes[si].scene;
+        std::mt19937_64 rng(mix(o.seed, uint64_t(i)));
+        scene.set_camera(Camera(random_view(cameras[si], o.size, rng)));
+        RenderSettings st;
+        st.threads = o.threads;
+        FrameBuffer out(o.size, o.size), fb;
+        st.spp = o.target_spp, st.seed = mix(mix(o.seed, uint64_t(i)), 0);
+        gpt->render(scene, st, fb);
+        out.set("target", fb.get("primal"));
+        std::string levels;
+        for (int s : o.spp) {
+            st.spp = s, st.seed = mix(mix(o.seed, uint64_t(i)), uint64_t(s));
+            gpt->render(scene, st, fb);
+            for (const char* name : kFrameLayers) out.set(fmt::format("s{}_{}", s, name), fb.get(name));
+            levels += (levels.empty() ? "" : ",") + std::to_string(s);
+        }
+        out.metadata()["scene"] = o.scenes[si];
+        out.metadata()["spp"] = levels;
+        out.metadata()["target_spp"] = std::to_string(o.target_spp);
+        // Written aside and renamed: an interrupted view leaves no file that looks finished.
+        const std::string tmp = fmt::format("{}/.partial-crop-{:05d}.exr", dir, i);
+        write_exr(tmp, out);
+        fs::rename(tmp, path);
+        if (progress) progress(i + 1, o.crops);
+    }
+}
+
+Sample make_sample(const GradientBuffers& noisy, const Image& target, const UNetConfig& config, int spp) {
+    if (target.width() != noisy.primal->width() || target.height() != noisy.primal->height() || target.channels() < 3)
+        throw InputError("training sample: the target's shape differs from the noisy frame's");
+    check_gradient_buffers(noisy);
+    return Sample{make_input(noisy, config)[0].clone(), planar(target, 3), spp};
+}
+
+std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& config) {
+    std::vector<std::string> files;
+    if (fs::is_directory(dir))
+        for (const auto& e : fs::directory_iterator(dir)) {
+            const std::string name = e.path().filename().string();
+            if (name.rfind("crop-", 0) == 0 && e.path().extension() == ".exr") files.push_back(e.path().string());
+        }
+    if (files.empty()) throw InputError("data set " + dir + ": no crop-*.exr files (render them with gdr_train data)");
+    std::sort(files.begin(), files.end());
+    std::vector<Sample> samples;
+    for (const std::string& f : files) {
+        const FrameBuffer fb = read_exr(f);
+        if (!fb.has("target") || !fb.metadata().count("spp"))
+            throw InputError(f + ": not a gdr_train data set file (no 'target' layer or 'spp' entry)");
+        std::string list = fb.metadata().at("spp");
+        for (size_t pos = 0; pos <= list.size();) {
+            const size_t comma = std::min(list.find(',', pos), list.size());
+            const int s = std::stoi(list.substr(pos, comma - pos));
+            pos = comma + 1;
+            FrameBuffer frame(fb.width(), fb.height());
+            for (const char* name : kFrameLayers) {
+                const std::string layer = fmt::format("s{}_{}", s, name);
+                if (!fb.has(layer)) throw InputError(f + ": missing layer '" + layer + "'");
+                frame.set(name, fb.get(layer));
+            }
+            samples.push_back(make_sample(gradient_buffers(frame), fb.get("target"), config, s));
+        }
+    }
+    return samples;
+}
+
+torch::Tensor training_loss(const torch::Tensor& p, const torch::Tensor& t, double relmse_weight) {
+    // v / (1 + |v|): Reinhard's tone map, odd-extended so that slightly
+    // negative predictions still get gradients.
+    const auto tone = [](const torch::Tensor& v) { return v / (1 + torch::abs(v)); };
+    const torch::Tensor l1 = torch::abs(tone(p) - tone(t)).mean();
+    const torch::Tensor rel = ((p - t).square() / (t.square() + 0.01)).mean();
+    return l1 + relmse_weight * rel;
+}
+
+double rel_mse(const torch::Tensor& x, const torch::Tensor& r) {
+    const torch::Tensor xd = x.to(torch::kFloat64), rd = r.to(torch::kFloat64);
+    return ((xd - rd).square() / (rd.square() + 0.01)).mean().item<double>();
+}
+
+namespace {
+
+/// Training-time output: exp(y) - 1 with y clamped only above (so negative
+/// corrections keep their gradients), cropped to the target's size.
+torch::Tensor train_output(UNet& net, const torch::Tensor& x, int H, int W) {
+    torch::Tensor y = net->forward(x).slice(2, kMargin, kMargin + H).slice(3, kMargin, kMargin + W);
+    return torch::expm1(torch::clamp_max(y, 80.0));
+}
+
+}  // namespace
+
+torch::Tensor predict(UNet& net, const Sample& s) {
+    torch::NoGradGuard guard;
+    const int H = int(s.target.size(1)), W = int(s.target.size(2));
+    torch::Tensor y = net->forward(s.input.unsqueeze(0)).slice(2, kMargin, kMargin + H).slice(3, kMargin, kMargin + W);
+    return decode_colour(y)[0];
+}
+
+Trainer::Trainer(const TrainOptions& options, std::vector<Sample> samples)
+    : options_(options), samples_(std::move(samples)) {
+    if (samples_.empty()) throw ParameterError("training: no samples");
+    if (options_.batch < 1) throw ParameterError("training: batch must be >= 1");
+    for (const Sample& s : samples_)
+        if (s.input.size(0) != input_channels(options_.config) || !s.input.sizes().equals(samples_[0].input.sizes()))
+            throw ParameterError("training: all samples need the same size and " +
+                                 std::to_string(input_channels(options_.config)) + " input channels");
+    torch::manual_seed(options_.seed);
+    net_ = UNet(options_.config);
+    optimizer_ = std::make_unique<torch::optim::Adam>(
+        net_->parameters(), torch::optim::AdamOptions(options_.learning_rate).betas({0.9, 0.99}));
+}
+
+double Trainer::step() {
+    std::mt19937_64 rng(mix(options_.seed, uint64_t(step_)));
+    std::uniform_int_distribution<size_t> pick(0, samples_.size() - 1);
+    std::vector<torch::Tensor> xs, ts;
+    for (int b = 0; b < options_.batch; ++b) {
+        const Sample& s = samples_[pick(rng)];
+        xs.push_back(s.input), ts.push_back(s.target);
+    }
+    const torch::Tensor x = torch::stack(xs), t = torch::stack(ts);
+    const double lr = options_.learning_rate * std::min(1.0, double(step_ + 1) / std::max(1, options_.warmup));
+    for (auto& group : optimizer_->param_groups()) static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+    optimizer_->zero_grad();
+    const torch::Tensor loss = training_loss(train_output(net_, x, int(t.size(2)), int(t.size(3))), t,
+                                             options_.relmse_weight);
+    loss.backward();
+    torch::nn::utils::clip_grad_norm_(net_->parameters(), 1.0);
+    optimizer_->step();
+    ++step_;
+    losses_.push_back(loss.item<double>());
+    return losses_.back();
+}
+
+double Trainer::evaluate(const std::vector<Sample>& samples) {
+    torch::NoGradGuard guard;
+    double sum = 0.0;
+    for (const Sample& s : samples) {
+        const int H = int(s.target.size(1)), W = int(s.target.size(2));
+        sum += training_loss(train_output(net_, s.input.unsqueeze(0), H, W), s.target.unsqueeze(0),
+                             options_.relmse_weight)
+                   .item<double>();
+    }
+    return samples.empty() ? 0.0 : sum / double(samples.size());
+}
+
+void Trainer::save_checkpoint(const std::string& path) {
+    torch::serialize::OutputArchive ar, net_ar, opt_ar;
+    net_->save(net_ar);
+    optimizer_->save(opt_ar);
+    ar.write("net", net_ar);
+    ar.write("optimizer", opt_ar);
+    ar.write("step", torch::tensor(int64_t(step_)));
+    ar.write("losses", torch::tensor(losses_, torch::kFloat64));
+    std::vector<int64_t> widths(options_.config.widths.begin(), options_.config.widths.end());
+    ar.write("option_widths", torch::tensor(widths));
+    ar.write("option_gradients", torch::tensor(int64_t(options_.config.gradients)));
+    ar.write("option_batch", torch::tensor(int64_t(options_.batch)));
+    ar.write("option_learning_rate", torch::tensor(options_.learning_rate, torch::kFloat64));
+    ar.write("option_warmup", torch::tensor(int64_t(options_.warmup)));
+    ar.write("option_relmse_weight", torch::tensor(options_.relmse_weight, torch::kFloat64));
+    ar.write("option_seed", torch::tensor(int64_t(options_.seed)));
+    const std::string tmp = path + ".partial";
+    ar.save_to(tmp);
+    fs::rename(tmp, path);
+}
+
+void Trainer::load_checkpoint(const std::string& path) {
+    if (!fs::is_regular_file(path)) throw InputError("checkpoint " + path + " does not exist");
+    torch::serialize::InputArchive ar, net_ar, opt_ar;
+    torch::Tensor step, losses, widths, gradients, batch, lr, warmup, relw, seed;
+    try {
+        ar.load_from(path);
+        step = read_tensor(ar, "step");
+        losses = read_tensor(ar, "losses");
+        widths = read_tensor(ar, "option_widths");
+        gradients = read_tensor(ar, "option_gradients");
+        batch = read_tensor(ar, "option_batch");
+        lr = read_tensor(ar, "option_learning_rate");
+        warmup = read_tensor(ar, "option_warmup");
+        relw = read_tensor(ar, "option_relmse_weight");
+        seed = read_tensor(ar, "option_seed");
+    } catch (const std::exception& e) {
+        const std::string what = e.what();
+        throw InputError("checkpoint " + path + " is not a gdr_train checkpoint or is corrupt: " +
+                         what.substr(0, what.find('\n')));
+    }
+    const auto differs = [&](const char* key, const std::string& was, const std::string& now) {
+        if (was != now)
+            throw ParameterError("checkpoint " + path + " was made with " + key + "=" + was + ", this run has " + now);
+    };
+    std::string w_was, w_now;
+    for (int64_t i = 0; i < widths.numel(); ++i) w_was += (i ? "," : "") + std::to_string(widths[i].item<int64_t>());
+    for (size_t i = 0; i < options_.config.widths.size(); ++i)
+        w_now += (i ? "," : "") + std::to_string(options_.config.widths[i]);
+    differs("widths", w_was, w_now);
+    differs("gradients", std::to_string(gradients.item<int64_t>()), std::to_string(int(options_.config.gradients)));
+    differs("batch", std::to_string(batch.item<int64_t>()), std::to_string(options_.batch));
+    differs("learning_rate", fmt::format("{}", lr.item<double>()), fmt::format("{}", options_.learning_rate));
+    differs("warmup", std::to_string(warmup.item<int64_t>()), std::to_string(options_.warmup));
+    differs("relmse_weight", fmt::format("{}", relw.item<double>()), fmt::format("{}", options_.relmse_weight));
+    differs("seed", std::to_string(uint64_t(seed.item<int64_t>())), std::to_string(options_.seed));
+    try {
+        ar.read("net", net_ar);
+        ar.read("optimizer", opt_ar);
+        net_->load(net_ar);
+        optimizer_->load(opt_ar);
+    } catch (const std::exception& e) {
+        const std::string what = e.what();
+        throw InputError("checkpoint " + path + ": cannot restore the network or optimiser: " +
+                         what.substr(0, what.find('\n')));
+    }
+    step_ = step.item<int64_t>();
+    losses_.assign(losses.data_ptr<double>(), losses.data_ptr<double>() + losses.numel());
+}
+
+}  // namespace gdr::neural

@@ -1,0 +1,372 @@
+// gdr_train: renders the neural reconstructor's data set with gdr, trains the
+// U-Net in resumable chunks, validates it against poisson-l1 and times its
+// inference. See `gdr_train --help`.
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <sys/resource.h>
+#include <string>
+#include <vector>
+
+#include "gdr/core/error.h"
+#include "gdr/io/exr.h"
+#include "gdr/metrics.h"
+#include "gdr/neural/neural_reconstructor.h"
+#include "gdr/neural/training.h"
+#include "gdr/neural/unet.h"
+#include "gdr/reconstruct/reconstructor.h"
+
+using namespace gdr;
+using namespace gdr::neural;
+
+namespace {
+
+const char* kUsage = R"(usage:
+  gdr_train data --out DIR --scenes A.json[,B.json...] [--crops 16] [--size 64]
+                 [--spp 4,16,64] [--target-spp 1024] [--seed 1] [--threads 0]
+      Renders random views (gpt) into DIR/crop-NNNNN.exr; existing views are kept,
+      so a stopped run continues.
+  gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
+                  [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only]
+                  [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
+      Trains up to N steps in all, resuming from CKPT if it exists; writes CKPT
+      every --every steps, CKPT.csv (step,loss[,validation loss]) and OUT.
+  gdr_train validate --data DIR --weights W [--threads 2]
+      relMSE (eps 0.01, per channel) of the noisy primal, poisson-l1 and the
+      network against the targets, per sample count.
+  gdr_train reconstruct IN.exr --weights W -o OUT.exr [--threads 2]
+      The neural reconstruction (plus direct emitters) of a gpt render, as the
+      layer "color" of OUT.exr.
+  gdr_train time [--widths 16,32,48,64] [--size 1280x720] [--threads 2] [--repeat 3]
+      Seconds per inference of an untrained network of that shape on random input.
+)";
+
+std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> out;
+    size_t pos = 0;
+    while (pos <= s.size()) {
+        const size_t c = std::min(s.find(',', pos), s.size());
+        if (c > pos) out.push_back(s.substr(pos, c - pos));
+        pos = c + 1;
+    }
+    return out;
+}
+
+std::vector<int> split_ints(const std::string& s, const std::string& key) {
+    std::vector<int> out;
+    for (const auto& t : split(s)) {
+        try {
+            out.push_back(std::stoi(t));
+        } catch (const std::exception&) {
+            throw ParameterError("gdr_train: " + key + " expects integers separated by commas, got '" + s + "'");
+        }
+    }
+    return out;
+}
+
+/// --key value options of one sub-command; unknown keys are errors.
+struct Options {
+    std::map<std::string, std::string> values;
+    std::vector<std::string> flags;
+    Options(int argc, char** argv, const std::vector<std::string>& keys, const std::vector<std::string>& flag_keys) {
+        for (int i = 2; i < argc; ++i) {
+            const std::string a = argv[i];
+            if (std::find(flag_keys.begin(), flag_keys.end(), a) != flag_keys.end()) {
+                flags.push_back(a);
+                continue;
+            }
+            if (std::find(keys.begin(), keys.end(), a) == keys.end())
+                throw ParameterError("gdr_train " + std::string(argv[1]) + ": unknown option '" + a + "'\n" + kUsage);
+            if (i + 1 >= argc) throw ParameterError("gdr_train: " + a + " needs a value");
+            values[a] = argv[++i];
+        }
+    }
+    std::string get(const std::string& k, const std::string& def = "") const {
+        auto it = values.find(k);
+        return it == values.end() ? def : it->second;
+    }
+    std::string need(const std::string& k) const {
+        auto it = values.find(k);
+        if (it == values.end()) throw ParameterError("gdr_train: " + k + " is required\n" + kUsage);
+        return it->second;
+    }
+    long long num(const std::string& k, long long def) const {
+        const std::string v = get(k);
+        if (v.empty()) return def;
+        try {
+            return std::stoll(v);
+        } catch (const std::exception&) {
+            throw ParameterError("gdr_train: " + k + " expects an integer, got '" + v + "'");
+        }
+    }
+    double real(const std::string& k, double def) const {
+        const std::string v = get(k);
+        if (v.empty()) return def;
+        try {
+            return std::stod(v);
+        } catch (const std::exception&) {
+            throw ParameterError("gdr_train: " + k + " expects a number, got '" + v + "'");
+        }
+    }
+    bool flag(const std::string& k) const { return std::find(flags.begin(), flags.end(), k) != flags.end(); }
+};
+
+int data(int argc, char** argv) {
+    const Options o(argc, argv, {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads"},
+                    {});
+    DatasetOptions d;
+    d.scenes = split(o.need("--scenes"));
+    d.crops = int(o.num("--crops", d.crops));
+    d.size = int(o.num("--size", d.size));
+    if (!o.get("--spp").empty()) d.spp = split_ints(o.get("--spp"), "--spp");
+    d.target_spp = int(o.num("--target-spp", d.target_spp));
+    d.seed = uint64_t(o.num("--seed", 1));
+    d.threads = int(o.num("--threads", 0));
+    const auto t0 = std::chrono::steady_clock::now();
+    generate_dataset(d, o.need("--out"), [&](int done, int total) {
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        fmt::print(stderr, "\rdata: view {}/{}  {:.0f} s", done, total, s);
+    });
+    fmt::print(stderr, "\n");
+    return 0;
+}
+
+UNetConfig config_of(const Options& o) {
+    UNetConfig c;
+    if (!o.get("--widths").empty()) c.widths = split_ints(o.get("--widths"), "--widths");
+    c.gradients = !o.flag("--primal-only");
+    return c;
+}
+
+int train(int argc, char** argv) {
+    const Options o(argc, argv,
+                    {"--data", "--checkpoint", "--steps", "--batch", "--lr", "--warmup", "--seed", "--widths", "--threads",
+                     "--every", "--weights", "--validation"},
+                    {"--primal-only"});
+    TrainOptions t;
+    t.config = config_of(o);
+    t.batch = int(o.num("--batch", t.batch));
+    t.learning_rate = o.real("--lr", t.learning_rate);
+    t.warmup = int(o.num("--warmup", t.warmup));
+    t.seed = uint64_t(o.num("--seed", 1));
+    torch::set_num_threads(int(o.num("--threads", 2)));
+    const long long steps = o.num("--steps", 0), every = std::max(1LL, o.num("--every", 50));
+    const std::string ckpt = o.need("--checkpoint");
+    Trainer trainer(t, load_dataset(o.need("--data"), t.config));
+    std::vector<Sample> validation;
+    if (!o.get("--validation").empty()) validation = load_dataset(o.get("--validation"), t.config);
+    if (std::filesystem::exists(ckpt)) {
+        trainer.load_checkpoint(ckpt);
+        fmt::print(stderr, "train: resuming {} at step {}\n", ckpt, trainer.steps());
+    }
+    fmt::print(stderr, "train: {} parameters, {} steps of {} crops\n", trainer.net()->parameter_count(), steps, t.batch);
+    std::map<long long, double> val_loss;
+    const std::string csv = ckpt + ".csv";
+    // Validation losses of earlier chunks are kept in the csv; reread them.
+    if (std::ifstream in(csv); in && trainer.steps() > 0) {
+        std::string line;
+        while (std::getline(in, line)) {
+            const auto f = split(line);
+            if (f.size() == 3 && f[0] != "step" && std::stoll(f[0]) <= trainer.steps()) val_loss[std::stoll(f[0])] = std::stod(f[2]);
+        }
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const long long first = trainer.steps();
+    while (trainer.steps() < steps) {
+        trainer.step();
+        const long long k = trainer.steps();
+        if (k % every == 0 || k == steps) {
+            trainer.save_checkpoint(ckpt);
+            const auto& l = trainer.losses();
+            double mean = 0.0;
+            const long long n = std::min<long long>(every, (long long)l.size());
+            for (long long i = (long long)l.size() - n; i < (long long)l.size(); ++i) mean += l[size_t(i)] / double(n);
+            std::string v;
+            if (!validation.empty()) {
+                val_loss[k] = trainer.evaluate(validation);
+                v = fmt::format("  validation {:.5f}", val_loss[k]);
+            }
+            const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            const double per = s / double(k - first);
+            fmt::print(stderr, "step {}/{}  loss {:.5f}  mean of last {}: {:.5f}{}  {:.2f} s/step  eta {:.0f} s\n", k, steps,
+                       l.back(), n, mean, v, per, per * double(steps - k));
+        }
+    }
+    {
+        std::ofstream out(csv);
+        out << "step,loss,validation_loss\n";
+        for (size_t i = 0; i < trainer.losses().size(); ++i) {
+            const long long k = (long long)i + 1;
+            out << k << "," << fmt::format("{}", trainer.losses()[i]);
+            if (val_loss.count(k)) out << "," << fmt::format("{}", val_loss[k]);
+            out << "\n";
+        }
+    }
+    if (!o.get("--weights").empty()) {
+        save_weights(trainer.net(), o.get("--weights"));
+        fmt::print(stderr, "train: weights -> {}\n", o.get("--weights"));
+    }
+    return 0;
+}
+
+int validate(int argc, char** argv) {
+    const Options o(argc, argv, {"--data", "--weights", "--threads"}, {});
+    torch::set_num_threads(int(o.num("--threads", 2)));
+    UNet net = load_weights(o.need("--weights"));
+    const std::string dir = o.need("--data");
+    std::vector<std::string> files;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+        if (e.path().filename().string().rfind("crop-", 0) == 0) files.push_back(e.path().string());
+    std::sort(files.begin(), files.end());
+    if (files.empty()) throw InputError("validate: no crop-*.exr in " + dir);
+    // Per view and sample count; the mean is dominated by a few views with
+    // fireflies, so the median is printed too.
+    struct Values { std::vector<double> noisy, l1, net; };
+    std::map<int, Values> by_spp;
+    for (const auto& f : files) {
+        const FrameBuffer fb = read_exr(f);
+        for (const int s : split_ints(fb.metadata().at("spp"), "spp")) {
+            FrameBuffer frame(fb.width(), fb.height());
+            for (const char* name : {"primal", "dx", "dy", "albedo", "normal", "depth"})
+                frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
+            const GradientBuffers gb = gradient_buffers(frame);
+            const Image& target = fb.get("target");
+            Values& v = by_spp[s];
+            v.noisy.push_back(relmse(frame.get("primal"), target));
+            v.l1.push_back(relmse(reconstruct("poisson-l1", Params("validate"), gb), target));
+            v.net.push_back(relmse(infer(net, gb), target));
+        }
+    }
+    const auto mean = [](const std::vector<double>& x) {
+        double m = 0.0;
+        for (double v : x) m += v / double(x.size());
+        return m;
+    };
+    const auto median = [](std::vector<double> x) {
+        std::sort(x.begin(), x.end());
+        return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
+    };
+    fmt::print("relMSE (eps 0.01, per channel) over {} views of {}: mean | median over views\n", files.size(), dir);
+    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>16}\n", "spp", "noisy", "poisson-l1", "neural", "neural/l1");
+    for (const auto& [s, v] : by_spp)
+        fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>7.3f} {:>8.3f}\n", s, mean(v.noisy),
+                   median(v.noisy), mean(v.l1), median(v.l1), mean(v.net), median(v.net), mean(v.net) / mean(v.l1),
+                   median(v.net) / median(v.l1));
+    return 0;
+}
+
+int reconstruct_file(int argc, char** argv) {
+    if (argc < 3 || argv[2][0] == '-') throw ParameterError(std::string("gdr_train reconstruct: no input given\n") + kUsage);
+    const std::string in = argv[2];
+    std::vector<char*> rest{argv[0], argv[1]};
+    for (int i = 3; i < argc; ++i) rest.push_back(argv[i]);
+    const Options o(int(rest.size()), rest.data(), {"--weights", "-o", "--threads"}, {});
+    const std::string out = o.need("-o");
+    if (std::filesystem::exists(out) && std::filesystem::equivalent(in, out))
+        throw ParameterError("gdr_train reconstruct: the output " + out + " is the input");
+    Registry<Reconstructor> reg("reconstructor");
+    register_neural_reconstructor(reg);
+    Params p("gdr_train reconstruct");
+    p.set("weights", o.need("--weights"));
+    p.set("threads", o.num("--threads", 2));
+    const auto rec = reg.create("neural", p);
+    const FrameBuffer fb = read_exr(in);
+    GradientBuffers gb;
+    try {
+        gb = gradient_buffers(fb);
+    } catch (const InputError& e) {
+        throw InputError(in + ": not a gradient-domain render: " + e.what());
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    Image img;
+    try {
+        img = rec->reconstruct(gb);
+    } catch (const Error& e) {
+        throw InputError(in + ": " + e.what());
+    }
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    FrameBuffer result(img.width(), img.height());
+    result.set("color", img);
+    result.metadata()["reconstruction"] = "neural";
+    result.metadata()["reconstruction_params"] = rec->describe();
+    write_exr(out, result);
+    fmt::print(stderr, "reconstructed {} ({}x{}) with neural in {:.2f} s -> {}\n", in, img.width(), img.height(), s, out);
+    return 0;
+}
+
+int time_inference(int argc, char** argv) {
+    const Options o(argc, argv, {"--widths", "--size", "--threads", "--repeat"}, {"--primal-only"});
+    const UNetConfig c = config_of(o);
+    int W = 1280, H = 720;
+    if (const std::string s = o.get("--size"); !s.empty() && std::sscanf(s.c_str(), "%dx%d", &W, &H) != 2)
+        throw ParameterError("gdr_train time: --size expects WxH, got '" + s + "'");
+    const int threads = int(o.num("--threads", 2));
+    torch::set_num_threads(threads);
+    torch::manual_seed(1);
+    UNet net(c);
+    // Random weights everywhere (the output layer starts at zero), like a trained network's.
+    {
+        torch::NoGradGuard g;
+        for (auto& p : net->parameters()) p.normal_(0.0, 0.05);
+    }
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    FrameBuffer fb(W, H);
+    for (const auto& [name, ch] : std::vector<std::pair<std::string, int>>{
+             {"primal", 3}, {"dx", 3}, {"dy", 3}, {"albedo", 3}, {"normal", 3}, {"depth", 1}}) {
+        Image& img = fb.add(name, ch);
+        for (float& v : img.values()) v = u(rng);
+    }
+    const GradientBuffers gb = gradient_buffers(fb);
+    // CPU seconds of the process: on a machine shared with other work, CPU
+    // time / threads bounds the wall time the run would take alone.
+    const auto cpu = [] {
+        rusage u{};
+        getrusage(RUSAGE_SELF, &u);
+        return double(u.ru_utime.tv_sec + u.ru_stime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+    };
+    std::vector<double> times, cpus;
+    for (int r = 0; r < std::max<long long>(1, o.num("--repeat", 3)) + 1; ++r) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const double c0 = cpu();
+        const Image out = infer(net, gb);
+        const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (r > 0) times.push_back(s), cpus.push_back(cpu() - c0);  // the first run includes one-time set-up
+    }
+    std::sort(times.begin(), times.end());
+    std::sort(cpus.begin(), cpus.end());
+    fmt::print("U-Net widths {} ({} inputs, {} parameters): {}x{} on {} threads: wall median {:.3f} s, min {:.3f} s; "
+               "CPU median {:.3f} s ({} runs)\n",
+               o.get("--widths", "16,32,48,64"), input_channels(c), net->parameter_count(), W, H, threads,
+               times[times.size() / 2], times.front(), cpus[cpus.size() / 2], times.size());
+    return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        const std::string cmd = argc > 1 ? argv[1] : "";
+        if (cmd == "data") return data(argc, argv);
+        if (cmd == "train") return train(argc, argv);
+        if (cmd == "validate") return validate(argc, argv);
+        if (cmd == "time") return time_inference(argc, argv);
+        if (cmd == "reconstruct") return reconstruct_file(argc, argv);
+        std::fputs(kUsage, cmd == "-h" || cmd == "--help" ? stdout : stderr);
+        return cmd == "-h" || cmd == "--help" ? 0 : 2;
+    } catch (const Error& e) {
+        std::fprintf(stderr, "gdr_train: error: %s\n", e.what());
+        return 1;
+    } catch (const c10::Error& e) {
+        const std::string what = e.what();
+        std::fprintf(stderr, "gdr_train: torch error: %s\n", what.substr(0, what.find('\n')).c_str());
+        return 1;
+    }
+}
