@@ -16,6 +16,7 @@
 #include <random>
 
 #include "block_stats.h"
+#include "joined_densities.h"
 #include "chi2.h"
 #include "cycles_compare.h"
 #include "gdr/core/error.h"
@@ -199,9 +200,9 @@ TEST_CASE("connections: the densities of a joined path are the full path's, vert
     // connection with s != 1 that contributes: the densities
     // connection_densities() assembles from the subpaths' pdf_fwd / pdf_rev
     // and four recomputed values equal the densities computed from scratch
-    // along the joined path's vertices, and their weights sum to one.
-    int checked = 0, compared = 0, loose = 0;
-    double worst = 0.0;
+    // along the joined path's vertices, and their weights sum to one
+    // (tests/joined_densities.h).
+    test::DensityTally tally;
     for (const char* variant : {"Glossy", "Sphere"}) {
         const auto scene = small_box(variant, 16);
         Subpath camera, light;
@@ -213,54 +214,15 @@ TEST_CASE("connections: the densities of a joined path are the full path's, vert
             for (int t = 1; t <= camera.size(); ++t)
                 for (int s = 0; s <= light.size(); ++s) {
                     if (s == 1 || s + t < 2 || s + t > 9 || (s == 0 && t == 1)) continue;
-                    uint64_t rays = 0;
-                    const ConnectionResult c = connect(*scene, light, camera, {s, t}, sampler, {MisHeuristic::Power, -1}, true, rays);
-                    if (is_black(c.value)) continue;
-                    PathDensities d;
-                    connection_densities(*scene, light, camera, {s, t}, s > 0 ? &light.v[s - 1] : nullptr, d);
-                    // The joined path z_0 .. z_{n-1}, its densities from scratch.
-                    std::vector<const Vertex*> z;
-                    for (int k = 0; k < t; ++k) z.push_back(&camera.v[k]);
-                    for (int k = s - 1; k >= 0; --k) z.push_back(&light.v[k]);
-                    const int n = int(z.size());
-                    // Vertices close to each other (in a corner) are left
-                    // out: there the origin offsets below are not small.
-                    bool close = false;
-                    for (int k = 1; k < n; ++k) close |= glm::length(z[k]->si.p - z[k - 1]->si.p) < 1e-2f;
-                    if (close) continue;
-                    for (int k = 1; k < n; ++k) {
-                        const double fwd = pdf_area(*scene, k >= 2 ? z[k - 2] : nullptr, *z[k - 1], *z[k]);
-                        const double rev = k == n - 1   ? pdf_light_origin(*scene, *z[k])
-                                           : k == n - 2 ? pdf_light_direction(*z[n - 1], *z[k])
-                                                        : pdf_area(*scene, z[k + 2], *z[k + 1], *z[k]);
-                        const auto rel = [](double a, double b) {
-                            return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-30});
-                        };
-                        INFO(variant << " sample " << i << " (s, t) = (" << s << ", " << t << ") vertex " << k);
-                        worst = std::max({worst, rel(d.fwd[k], fwd), rel(d.rev[k], rev)});
-                        // The walk's densities are of its sampled directions;
-                        // those from scratch of the directions between the
-                        // stored hit points, which differ by the rays' origin
-                        // offsets (1e-4 scene units): a glossy lobe turns that
-                        // into percents. A bookkeeping error (a wrong vertex,
-                        // a missing cosine) is off by far more, and everywhere.
-                        REQUIRE(rel(d.fwd[k], fwd) < 0.1);
-                        REQUIRE(rel(d.rev[k], rev) < 0.1);
-                        compared += 2;
-                        loose += (rel(d.fwd[k], fwd) > 1e-3) + (rel(d.rev[k], rev) > 1e-3);
-                    }
-                    double sum = 0.0;
-                    for (int u = 1; u <= n; ++u)
-                        if (strategy_possible(d, u)) sum += strategy_weight({MisHeuristic::Balance, -1}, d, u);
-                    REQUIRE(sum == Approx(1.0).epsilon(1e-9));
-                    ++checked;
+                    INFO(variant << " sample " << i);
+                    test::check_joined_densities(*scene, light, camera, {s, t}, sampler, tally);
                 }
         }
     }
-    CAPTURE(worst, compared, loose);
-    CHECK(checked > 1000);
-    CHECK(loose < compared / 20);
-    CHECK(worst < 0.05);
+    CAPTURE(tally.worst, tally.compared, tally.loose);
+    CHECK(tally.checked > 1000);
+    CHECK(tally.loose < tally.compared / 20);
+    CHECK(tally.worst < 0.05);
 }
 
 TEST_CASE("emission sampling: points by power and area, cosine directions, densities recorded", "[bdpt][statistical]") {

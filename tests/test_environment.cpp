@@ -12,6 +12,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "block_stats.h"
+#include "joined_densities.h"
 #include "chi2.h"
 #include "cli_test_util.h"
 #include "gdr/core/error.h"
@@ -460,14 +461,13 @@ TEST_CASE("environment: bdpt equals pt on an environment-lit box, weighted and b
 }
 
 TEST_CASE("environment: the densities of joined environment paths are the full path's, and their weights sum to one", "[environment][bdpt][mis]") {
-    // As the same test of test_bdpt.cpp, for the paths that reach the
-    // environment: camera walks that escape (s = 0) and light subpaths that
-    // start on it (s >= 2). The densities connection_densities() assembles
-    // from the walks' records equal those computed from scratch along the
-    // joined path: the environment vertex's solid-angle densities and its
-    // first hit's disk density are recorded as pdf_area() recomputes them.
-    int checked = 0, from_env = 0, to_env = 0, compared = 0, loose = 0;
-    double worst = 0.0;
+    // As the same test of test_bdpt.cpp (tests/joined_densities.h), for the
+    // paths that reach the environment: camera walks that escape (s = 0) and
+    // light subpaths that start on it (s >= 2). The environment vertex's
+    // solid-angle densities and its first hit's disk density must be
+    // recorded as pdf_area() recomputes them.
+    test::DensityTally tally;
+    int from_env = 0, to_env = 0;
     const auto scene = env_box(16);
     Subpath camera, light;
     for (uint32_t i = 0; i < 3000; ++i) {
@@ -480,51 +480,14 @@ TEST_CASE("environment: the densities of joined environment paths are the full p
                 if (s == 1 || s + t < 3 || s + t > 9 || (s == 0 && t == 1)) continue;
                 const bool env = s == 0 ? camera.v[t - 1].infinite : light.v[0].infinite;
                 if (!env) continue;
-                uint64_t rays = 0;
-                const ConnectionResult c = connect(*scene, light, camera, {s, t}, sampler, {MisHeuristic::Power, -1}, true, rays);
-                if (is_black(c.value)) continue;
-                PathDensities d;
-                connection_densities(*scene, light, camera, {s, t}, s > 0 ? &light.v[s - 1] : nullptr, d);
-                std::vector<const Vertex*> z;
-                for (int k = 0; k < t; ++k) z.push_back(&camera.v[k]);
-                for (int k = s - 1; k >= 0; --k) z.push_back(&light.v[k]);
-                const int n = int(z.size());
-                bool close = false;
-                for (int k = 1; k < n; ++k) close |= !z[k]->infinite && glm::length(z[k]->si.p - z[k - 1]->si.p) < 1e-2f;
-                if (close) continue;
-                for (int k = 1; k < n; ++k) {
-                    const double fwd = pdf_area(*scene, k >= 2 ? z[k - 2] : nullptr, *z[k - 1], *z[k]);
-                    const double rev = k == n - 1   ? pdf_light_origin(*scene, *z[k])
-                                       : k == n - 2 ? pdf_light_direction(*scene, *z[n - 1], *z[k])
-                                                    : pdf_area(*scene, z[k + 2], *z[k + 1], *z[k]);
-                    const auto rel = [](double a, double b) {
-                        return std::abs(a - b) / std::max({std::abs(a), std::abs(b), 1e-30});
-                    };
-                    INFO("sample " << i << " (s, t) = (" << s << ", " << t << ") vertex " << k);
-                    // As in test_bdpt.cpp: the walk's densities are of its
-                    // sampled directions, those from scratch of the
-                    // directions between the stored (offset) hit points;
-                    // in the box's corners that differs by percents. A
-                    // bookkeeping error is off by far more, and everywhere.
-                    worst = std::max({worst, rel(d.fwd[k], fwd), rel(d.rev[k], rev)});
-                    REQUIRE(rel(d.fwd[k], fwd) < 0.1);
-                    REQUIRE(rel(d.rev[k], rev) < 0.1);
-                    REQUIRE(d.fwd[k] > 0.0);
-                    REQUIRE(d.rev[k] > 0.0);
-                    compared += 2;
-                    loose += (rel(d.fwd[k], fwd) > 1e-3) + (rel(d.rev[k], rev) > 1e-3);
-                }
-                double sum = 0.0;
-                for (int u = 1; u <= n; ++u)
-                    if (strategy_possible(d, u)) sum += strategy_weight({MisHeuristic::Balance, -1}, d, u);
-                REQUIRE(sum == Approx(1.0).epsilon(1e-9));
-                ++checked;
-                (s == 0 ? to_env : from_env)++;
+                INFO("sample " << i);
+                if (test::check_joined_densities(*scene, light, camera, {s, t}, sampler, tally, true))
+                    (s == 0 ? to_env : from_env)++;
             }
     }
-    CAPTURE(checked, from_env, to_env, compared, loose, worst);
-    CHECK(loose < compared / 20);
-    CHECK(worst < 0.1);
+    CAPTURE(tally.checked, from_env, to_env, tally.compared, tally.loose, tally.worst);
+    CHECK(tally.loose < tally.compared / 20);
+    CHECK(tally.worst < 0.1);
     CHECK(from_env > 100);
     CHECK(to_env > 100);
 }
