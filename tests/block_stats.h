@@ -8,6 +8,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,6 +17,13 @@
 #include "gdr/io/scene_file.h"
 
 namespace gdr::test {
+
+/// Integrator or reconstructor parameters from key/value text pairs, parsed as on the command line.
+inline Params params(std::initializer_list<std::pair<const char*, const char*>> kv) {
+    Params p("test");
+    for (const auto& [k, v] : kv) p.set_from_text(std::string(k) + "=" + v);
+    return p;
+}
 
 inline std::string box(const std::string& variant) {
     return std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/CornellBox-" + variant + ".obj";

@@ -31,12 +31,6 @@ using namespace gdr::test;
 
 namespace {
 
-Params params(std::initializer_list<std::pair<const char*, const char*>> kv) {
-    Params p("test");
-    for (const auto& [k, v] : kv) p.set_from_text(std::string(k) + "=" + v);
-    return p;
-}
-
 // A bundled scene file at a test resolution.
 SceneFile scene_at(const std::string& rel, int res) {
     SceneFile sf = load_scene_file(std::string(GDR_SOURCE_DIR) + "/" + rel);

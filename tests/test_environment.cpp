@@ -29,12 +29,6 @@ using namespace gdr::test;
 
 namespace {
 
-Params params(std::initializer_list<std::pair<const char*, const char*>> kv) {
-    Params p("test");
-    for (const auto& [k, v] : kv) p.set_from_text(std::string(k) + "=" + v);
-    return p;
-}
-
 // A small, strongly non-uniform map: a smooth gradient, a bright patch and a
 // black texel (which must never be sampled).
 Image test_map(int w = 12, int h = 8) {

@@ -15,6 +15,7 @@
 #include "cli_test_util.h"
 
 using namespace gdr;
+using gdr::test::params;
 
 namespace {
 
@@ -70,12 +71,6 @@ double max_relative_error(const Image& a, const Image& b) {
     for (size_t i = 0; i < a.values().size(); ++i)
         e = std::max(e, std::abs(double(a.values()[i]) - b.values()[i]) / std::max(1e-3, std::abs(double(b.values()[i]))));
     return e;
-}
-
-Params params(std::initializer_list<std::pair<const char*, const char*>> kv) {
-    Params p("test");
-    for (const auto& [k, v] : kv) p.set_from_text(std::string(k) + "=" + v);
-    return p;
 }
 
 const std::vector<Params>& all_variants() {
