@@ -27,7 +27,7 @@ void append_escape_vertex(const Scene& scene, const Ray& ray, const Color& beta,
     x.infinite = true;
     x.si.ng = -ray.d;
     x.si.frame = Frame(x.si.ng);
-    x.si.p = ray.o + ray.d * (2.f * (scene.bounding_radius() + glm::length(ray.o - scene.bounds_center())));
+    x.si.p = scene.beyond_scene(ray.o, ray.d);
     x.si.t = kInf;
     x.wo = -ray.d;
     x.beta = beta;

@@ -548,7 +548,7 @@ LightSample Scene::sample_environment(const Vec3& ref, const Vec2& u) const {
     ls.radiance = es.radiance;
     ls.pdf_w = env_select_ * es.pdf_w;
     // Beyond the bounding sphere whatever the reference point (a camera may be outside it).
-    ls.p = ref + es.wi * (2.f * (radius_ + glm::length(ref - center_)));
+    ls.p = beyond_scene(ref, es.wi);
     return ls;
 }
 

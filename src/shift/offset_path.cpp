@@ -122,8 +122,9 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         rec.nee_jacobian = 1.0;
         if (!is_black(ls.radiance) && !is_black(fe.f)) {
             ++path.rays;
-            const Vec3 far = y.si.p + wi_world * (2.f * (scene.bounding_radius() + glm::length(y.si.p - scene.bounds_center())));
-            const bool lit = DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, far, ls.n, {&path, k, false});
+            const bool lit = DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng,
+                                                                   scene.beyond_scene(y.si.p, wi_world), ls.n,
+                                                                   {&path, k, false});
             rec.nee_radiance = lit ? ls.radiance : Color(0.f);
         }
         return;
@@ -175,7 +176,7 @@ void set_on_environment(const Scene& scene, const Ray& ray, OffsetVertex& v) {
     v.infinite = true;
     v.si.ng = -ray.d;
     v.si.frame = Frame(v.si.ng);
-    v.si.p = ray.o + ray.d * (2.f * (scene.bounding_radius() + glm::length(ray.o - scene.bounds_center())));
+    v.si.p = scene.beyond_scene(ray.o, ray.d);
     v.emitted = scene.environment()->eval(ray.d);
 }
 

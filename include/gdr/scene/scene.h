@@ -206,6 +206,12 @@ public:
     float environment_pdf(const Vec3& w) const { return env_ ? env_select_ * env_->pdf(w) : 0.f; }
     /// Centre of the bounding sphere of bounding_radius() (scene units).
     const Vec3& bounds_center() const { return center_; }
+    /// A point along unit direction `dir` from `from` that lies outside the
+    /// bounding sphere (scene units): the far end of a shadow ray towards the
+    /// environment, and the stand-in position of a vertex at infinity.
+    Vec3 beyond_scene(const Vec3& from, const Vec3& dir) const {
+        return from + dir * (2.f * (radius_ + glm::length(from - center_)));
+    }
     /// True if light-sample prefetching pays: the emitters and their alias
     /// table exceed what stays in the first-level cache. With a few emitters
     /// the prefetches only cost instructions.
