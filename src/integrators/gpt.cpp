@@ -17,8 +17,10 @@ namespace gdr {
 
 namespace {
 
-// Solid-angle density with which light sampling at `from` picks the emitter point of `at`.
-double light_pdf_w(const Scene& scene, const Vec3& from, const SurfaceInteraction& at) {
+// Solid-angle density (1/sr) with which light sampling at `from` picks the
+// emitter point of `at`, or, if `infinite`, the environment's direction -at.ng.
+double light_pdf_w(const Scene& scene, const Vec3& from, const SurfaceInteraction& at, bool infinite) {
+    if (infinite) return scene.environment_pdf(-at.ng);
     const float pa = scene.light_pdf_a(at.prim);
     if (!(pa > 0.f)) return 0.0;
     const Vec3d d = Vec3d(at.p) - Vec3d(from);
@@ -57,7 +59,7 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
             T.emit = beta * T.emitted;
             T.emit_pdf_bsdf = P.bs.pdf;
             if (!P.bs.is_delta() && x.nee[k - 1].valid && !is_black(T.emitted))
-                T.emit_pdf_light = X.infinite ? double(scene.environment_pdf(-X.si.ng)) : light_pdf_w(scene, P.si.p, X.si);
+                T.emit_pdf_light = light_pdf_w(scene, P.si.p, X.si, X.infinite);
         }
         if (nee.valid) {
             const LightSample& ls = nee.light;
@@ -152,8 +154,7 @@ PairEstimate evaluate_pair_as(const Scene& scene, const CameraPath& x, const Bas
                 b_b = double(S.pdf) * S.jacobian;
                 const OffsetVertex& Yp = y->v[k - 1].y;
                 if (!S.delta && (Y.y.infinite || Y.y.si.is_emitter()) && scene.has_lights() && !Yp.si.material->pure_delta)
-                    b_l = (Y.y.infinite ? double(scene.environment_pdf(-Y.y.si.ng)) : light_pdf_w(scene, Yp.si.p, Y.y.si)) *
-                          S.jacobian;
+                    b_l = light_pdf_w(scene, Yp.si.p, Y.y.si, Y.y.infinite) * S.jacobian;
             }
             if (!is_black(T.emit) || !is_black(cy))
                 add(e, gradient_mis_weight(mis, T.emit_pdf_bsdf, T.emit_pdf_light, b_b, b_l, r_prev), T.emit, cy);
