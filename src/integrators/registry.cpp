@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "gdr/integrators/bdpt.h"
+#include "gdr/integrators/gbdpt.h"
 #include "gdr/integrators/gpt.h"
 #include "gdr/integrators/pt.h"
 
@@ -13,6 +14,7 @@ void register_builtin_integrators(Registry<Integrator>& r) {
     register_pt(r);
     register_gpt(r);
     register_bdpt(r);
+    register_gbdpt(r);
 }
 
 Registry<Integrator>& integrator_registry() {

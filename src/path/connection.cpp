@@ -86,6 +86,22 @@ double strategy_weight(const StrategySet& set, const PathDensities& d, int t) {
     return mis_weight(set.heuristic, 1.0, p);
 }
 
+void strategy_density_ratios(const PathDensities& d, int t, std::vector<double>& out) {
+    const int n = d.size();
+    out.assign(size_t(n) + 1, 0.0);
+    out[size_t(t)] = strategy_possible(d, t) ? 1.0 : 0.0;
+    double r = 1.0;
+    for (int u = t - 1; u >= 1; --u) {
+        r *= remap0(d.rev[u]) / remap0(d.fwd[u]);
+        if (strategy_possible(d, u)) out[size_t(u)] = r;
+    }
+    r = 1.0;
+    for (int u = t + 1; u <= n; ++u) {
+        r *= remap0(d.fwd[u - 1]) / remap0(d.rev[u - 1]);
+        if (strategy_possible(d, u)) out[size_t(u)] = r;
+    }
+}
+
 ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
                          const Sampler& camera_sampler, const StrategySet& set, bool want_weight, uint64_t& rays) {
     ConnectionResult r;
@@ -136,7 +152,9 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         if (is_black(r.value)) return r;
         ++rays;
         if (!scene.visible(q->si.p, q->si.ng, eye.si.p, Vec3(0.f))) {
+            const Vec2 film = r.film;
             r = {};  // every exit returns r, so it is built in the caller's slot
+            r.occluded = true, r.film = film;
             return r;
         }
         r.splat = true;
@@ -162,6 +180,7 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         ++rays;
         if (!scene.visible(pt.si.p, pt.si.ng, ls.p, ls.n)) {
             r = {};  // every exit returns r, so it is built in the caller's slot
+            r.occluded = true;
             return r;
         }
         if (!want_weight) return r;
@@ -196,6 +215,7 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         ++rays;
         if (!scene.visible(q->si.p, q->si.ng, pt.si.p, pt.si.ng)) {
             r = {};  // every exit returns r, so it is built in the caller's slot
+            r.occluded = true;
             return r;
         }
     }

@@ -56,6 +56,13 @@ bool strategy_possible(const PathDensities& d, int t, int max_s = -1);
 /// (Veach 1997, section 10.2: a strategy's density over another's is a
 /// product of rev / fwd ratios, a zero density of a delta step counting as 1).
 double strategy_weight(const StrategySet& set, const PathDensities& d, int t);
+/// The densities of every strategy of the path of `d` relative to strategy
+/// t's own: out[t'] = p_t'(z) / p_t(z) for t' = 1 .. n (out has n + 1
+/// entries, out[0] unused), 0 where strategy t' cannot sample the path
+/// (strategy_possible without a light-vertex limit). Unitless. What an
+/// estimator that restricts or pairs the strategies (gradient-domain
+/// bidirectional path tracing) sums its own MIS weights from.
+void strategy_density_ratios(const PathDensities& d, int t, std::vector<double>& out);
 
 /// The densities of the path that strategy `c` forms from the two
 /// subpaths: the subpaths' own, with those of the (up to) four vertices
@@ -70,7 +77,10 @@ struct ConnectionResult {
     Color value{0.f};     ///< Unweighted estimate f / p of the path's measurement contribution (W/(m^2 sr)); 0 if none.
     double weight = 0.0;  ///< Its MIS weight.
     bool splat = false;   ///< t = 1: the value belongs to raster point `film`, not to the sample's pixel.
-    Vec2 film{0.f};       ///< Raster point (pixel units) of a t = 1 connection.
+    Vec2 film{0.f};       ///< Raster point (pixel units) of a t = 1 connection (also when occluded).
+    /// The connection's segment was blocked (value 0): the path exists, and
+    /// only this strategy samples it (every other one would trace the segment).
+    bool occluded = false;
 };
 
 /// Evaluates strategy `c` for a sample's `light` and `camera` subpaths

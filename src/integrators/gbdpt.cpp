@@ -1,0 +1,728 @@
+// Gradient-domain bidirectional path tracing (Manzi et al., "Gradient-Domain
+// Bidirectional Path Tracing", 2015).
+//
+// A sample is a bidirectional one: a camera subpath x through the pixel and a
+// light subpath, joined by every (s, t) strategy of the path-space core
+// (gdr/path/connection.h). For each of the four neighbouring pixels, the
+// camera subpath is shifted by the registered shift mapping (the walk of
+// gpt's offsets, offset_path.h, without its light samples); the light
+// subpath is shared. Each base path x of strategy (s, t) then has an offset
+// y = T(x) that follows the offset camera subpath up to its reconnection
+// y_b -> x_{b+1} and shares every vertex after it, light subpath included.
+//
+// For T to be one map on full paths, whichever strategy sampled them, it must
+// not depend on which of a path's vertices came from which subpath. The
+// camera-side shift reads the vertices up to x_{b+1}; so T(x) is taken to be
+// defined only where the shift reconnects no later than the first pair of
+// consecutive connectable vertices of x and of y (every kept strategy connects
+// at such a pair, so that b <= t - 1 and the shift never needs light-subpath
+// vertices it has not reached). A reconnection at b = t - 1 is the connection
+// itself; the shift decides it with the light vertex as x_{b+1}. Light
+// tracing (t = 1) shifts the film point of the light vertex seen by the
+// camera and reconnects its first hit to the next light vertex.
+//
+// Strategies: a connection needs both of its vertices connectable (roughness
+// above `drop`, at least the shift's own threshold), which drops connections
+// at very glossy vertices, the publication's key insight; s = 0 (the camera
+// walk hits the light) is always kept, so every path keeps a strategy and the
+// estimator stays unbiased. A pair (x, y) keeps the strategies both paths
+// allow. Its balance-heuristic weight is
+//     w_st = p_st(x) / sum_{s',t' kept} ( p_s't'(x) + |J| p_s't'(y) ),
+// where a strategy counts for a path only if it can produce it: a path with a
+// blocked segment is produced only by the strategy that connects across that
+// segment (every other one would trace it), which is what makes the weights of
+// a pair sum to one when one of its two paths is blocked.
+//
+// Layers follow gpt: primal (base and offsets both contribute, as in
+// G-PT's default), dx, dy, direct, their variances, auxiliary features and
+// the reconstructions. Scenes with an environment light are refused: a
+// vertex at infinity is not connectable and the shift's treatment of it is
+// not a map on full paths.
+#include "gdr/integrators/gbdpt.h"
+
+#include <charconv>
+#include <limits>
+#include <tuple>
+
+#include <fmt/core.h>
+#include <tbb/parallel_for.h>
+
+#include "gdr/integrators/tiled.h"
+#include "gdr/path/connection.h"
+#include "gdr/path/dims.h"
+#include "gdr/path/trace.h"
+#include "gdr/reconstruct/reconstructor.h"
+#include "gdr/shift/offset_path.h"
+
+namespace gdr {
+
+namespace {
+
+constexpr int kDirs = 4;
+const int kDx[kDirs] = {1, -1, 0, 0};
+const int kDy[kDirs] = {0, 0, 1, -1};
+const char* const kGradSlot[kDirs] = {"g+x", "g-x", "g+y", "g-y"};
+const char* const kSplatSlot[kDirs] = {"s+x", "s-x", "s+y", "s-y"};
+// First RGB triple of each slot in a sample's output (slots() order), then
+// albedo, normal and depth (7 floats) from triple kAux.
+constexpr int kSelf = 0, kGrad = 1, kSplat = kGrad + kDirs, kDirect = kSplat + kDirs, kAux = kDirect + 1;
+constexpr int kNone = std::numeric_limits<int>::max();
+
+// The material an emitter point is on (light vertices carry none).
+const Material* emitter_material(const Scene& scene, const Vertex& v) {
+    return &scene.materials()[scene.mesh().material_ids[v.si.prim]];
+}
+
+// The camera subpath of an offset, y_0 (the camera) .. y_m: beta is the
+// offset's throughput in the base's measure, f(y)|J|/p(x) of its prefix, and
+// the densities are its own, so the core's connect() and
+// connection_densities() evaluate it as they do a camera subpath.
+struct OffsetSubpath {
+    Subpath p;
+    std::vector<OffsetVertex> y;  // y_k as shift steps read it
+    std::vector<double> r;        // r[k]: |J| p(y)/p(x) of the camera walk up to y_k
+    int b = kNone;                // depth of the reconnection y_b -> x_{b+1}
+    bool blocked = false;         // that reconnection's segment is blocked (the path y exists, f(y) = 0)
+    int size() const { return p.size(); }
+};
+
+// Walks the offset of camera subpath x towards the pixel displaced by
+// `delta`, until it ends, fails, or merges with x.
+void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& x,
+                 const Vec2& delta, OffsetSubpath& o, uint64_t& rays) {
+    o.p.mode = TransportMode::Radiance;
+    o.p.v.clear(), o.y.clear(), o.r.clear();
+    o.b = kNone, o.blocked = false;
+    if (x.size() < 2) return;
+    const Ray ray = scene.camera().generate_ray(x.film + delta);
+    ++rays;
+    OffsetVertex y1;
+    if (!scene.intersect(ray, y1.si)) return;
+    y1.wo = y1.si.frame.to_local(-ray.d);
+    o.p.v.push_back(x.v[0]);
+    o.y.emplace_back();
+    o.r.push_back(1.0);
+    {
+        Vertex& v = o.p.v.emplace_back();
+        v.si = y1.si, v.wo = -ray.d, v.beta = x.v[1].beta;
+        v.u_light = x.v[1].u_light, v.u_classify = x.v[1].u_classify;
+    }
+    o.y.push_back(y1);
+    o.r.push_back(1.0);
+    for (size_t k = 1; k + 1 < x.size(); ++k) {
+        const Vertex& xk = x.v[k];
+        if (!xk.scattered()) break;
+        const Vertex& next = x.v[k + 1];
+        const OffsetVertex yk = o.y[k];
+        ShiftStep s;
+        if (yk.on_base) {
+            // y_k is x_k entered from elsewhere: it leaves along the base's direction (|J| = 1).
+            const Bsdf& bsdf = *yk.si.material->bsdf;
+            s.kind = ShiftStep::Kind::Direction, s.wi = xk.bs.wi, s.jacobian = 1.0;
+            if (xk.bs.is_delta()) {
+                const auto e = bsdf.eval_delta(yk.wo, s.wi, yk.si.uv);
+                if (!e) break;
+                s.f = e->f, s.pdf = e->pdf, s.delta = true;
+            } else {
+                const BsdfEval fe = bsdf.eval_pdf(yk.wo, s.wi, yk.si.uv);
+                s.f = fe.f, s.pdf = fe.pdf;
+            }
+            if (is_black(s.f) || !(s.pdf > 0.f)) break;
+        } else {
+            s = shift.step(ShiftStepInput{scene, config, x, k, yk, true});
+            if (s.kind == ShiftStep::Kind::Fail) break;
+        }
+        const double inv_pdf = 1.0 / double(xk.bs.pdf);
+        Color beta = o.p.v[k].beta * s.f * float(abs_cos_theta(s.wi) * s.jacobian * inv_pdf / xk.rr_survival);
+        const double r = o.r[k] * double(s.pdf) * s.jacobian * inv_pdf;
+        o.p.v[k].delta = s.delta;
+        if (yk.on_base) {
+            // Same vertex, same outgoing direction: y is x from x_{k+1} on.
+            for (size_t j = k + 1; j < x.size(); ++j) {
+                Vertex v = x.v[j];
+                v.beta = beta;
+                o.p.v.push_back(v);
+                o.y.emplace_back();
+                o.r.push_back(r);
+                if (!x.v[j].scattered()) break;
+                beta *= scatter_weight(x.v[j]);
+            }
+            break;
+        }
+        OffsetVertex ny;
+        Vertex v;
+        if (s.kind == ShiftStep::Kind::Reconnect) {
+            o.b = int(k);
+            if (s.visibility_deferred) {
+                ++rays;
+                o.blocked = !scene.visible(yk.si.p, yk.si.ng, next.si.p, next.si.ng);
+            }
+            const Vec3 w = glm::normalize(yk.si.p - next.si.p);
+            ny.si = next.si, ny.on_base = true, ny.wo = next.si.frame.to_local(w);
+            v = next;
+            v.wo = w;
+        } else {
+            const Ray r2 = spawn_ray(yk.si, yk.si.frame.to_world(s.wi));
+            ++rays;
+            if (!scene.intersect(r2, ny.si)) break;
+            // The inverse would have reconnected at a connectable y_{k+1}.
+            if (s.reject_if_connectable && is_connectable(ny.si.material->min_roughness, next.u_classify, config))
+                break;
+            ny.wo = ny.si.frame.to_local(-r2.d);
+            v.si = ny.si, v.wo = -r2.d;
+            v.u_light = next.u_light, v.u_classify = next.u_classify;
+        }
+        v.type = VertexType::Surface;
+        v.beta = beta;
+        v.delta = false;
+        o.p.v.push_back(v);
+        o.y.push_back(ny);
+        o.r.push_back(r);
+    }
+    // The offset's own densities, as its walk would have recorded them (a
+    // delta step has none, as in walk_subpath).
+    std::vector<Vertex>& v = o.p.v;
+    for (size_t k = 1; k < v.size(); ++k)
+        v[k].pdf_fwd = k >= 2 && v[k - 1].delta ? 0.0 : pdf_area(scene, k >= 2 ? &v[k - 2] : nullptr, v[k - 1], v[k]);
+    for (size_t k = 0; k + 2 < v.size(); ++k) v[k].pdf_rev = v[k + 1].delta ? 0.0 : pdf_area(scene, &v[k + 2], v[k + 1], v[k]);
+}
+
+// First depth k >= 1 of a pair of connectable vertices z_k, z_{k+1} of a
+// path of n vertices (kNone if there is none).
+int first_pair(const uint8_t* conn, int n) {
+    for (int k = 1; k + 1 < n; ++k)
+        if (conn[k] && conn[k + 1]) return k;
+    return kNone;
+}
+
+// Whether strategy t is kept for a path with connectability flags `conn`
+// and densities `d`: s = 0 always; a connection only between connectable
+// vertices, and light tracing only where its shift reconnects at the first
+// hit (z_1 and z_2 connectable).
+bool kept(const uint8_t* conn, const PathDensities& d, int t) {
+    const int n = d.size();
+    if (t == n) return true;
+    if (!strategy_possible(d, t) || !conn[t - 1] || !conn[t]) return false;
+    return t != 1 || (n >= 3 && conn[2]);
+}
+
+// Light tracing's raster point of light vertex q (false if the camera does not see its direction).
+bool film_point(const Scene& scene, const Vertex& eye, const Vertex& q, Vec2& film) {
+    const Vec3 d = eye.si.p - q.si.p;
+    const float dist = glm::length(d);
+    if (!(dist > 0.f)) return false;
+    return scene.camera().importance(-d / dist, film) > 0.f;
+}
+
+// The unweighted contribution of joining camera-side vertex p (radiance
+// transport) to light-side vertex q (a surface or an emitter point), visibility
+// not tested: beta_q f_q G f_p beta_p (W/(m^2 sr)).
+Color join(const Vertex& q, const Vertex& p) {
+    const Vec3 d = p.si.p - q.si.p;
+    const float dist2 = glm::dot(d, d);
+    if (!(dist2 > 0.f)) return Color(0.f);
+    const Vec3 w = d / std::sqrt(dist2);  // light side -> camera side
+    Color fq(1.f);
+    float cos_q;
+    if (q.type == VertexType::Light) {
+        cos_q = glm::dot(q.si.ng, w);
+        if (!(cos_q > 0.f)) return Color(0.f);
+    } else {
+        fq = vertex_f(q, w, TransportMode::Importance);
+        cos_q = abs_cos_shading(q, w);
+    }
+    const Color fp = vertex_f(p, -w, TransportMode::Radiance);
+    return q.beta * fq * fp * p.beta * (cos_q * abs_cos_shading(p, w) / dist2);
+}
+
+// Whether the segment between two finite vertices is unblocked.
+bool segment_visible(const Scene& scene, const Vertex& a, const Vertex& b) {
+    return scene.visible(a.si.p, a.si.ng, b.si.p, b.type == VertexType::Camera ? Vec3(0.f) : b.si.ng);
+}
+
+// Sum of the density ratios `rho` of the strategies in `set` (t' = 1..n).
+double sum_over(const std::vector<double>& rho, const std::vector<uint8_t>& set) {
+    double s = 0.0;
+    for (size_t u = 1; u < rho.size(); ++u)
+        if (set[u]) s += rho[u];
+    return s;
+}
+
+class GradientBdpt final : public TiledIntegrator {
+public:
+    explicit GradientBdpt(const Params& p) {
+        shift_name_ = p.get_string("shift", "half-vector");
+        shift_ = shift_registry().create(shift_name_, Params("shift"));
+        config_.threshold = float(p.get_real("threshold", 0.001));
+        if (!(config_.threshold >= 0.f)) throw ParameterError("gbdpt: threshold must be >= 0");
+        drop_ = float(p.get_real("drop", config_.threshold));
+        if (!(drop_ >= config_.threshold))
+            throw ParameterError("gbdpt: drop must be at least the shift's threshold (" +
+                                 fmt::format("{}", config_.threshold) + "), got " + fmt::format("{}", drop_));
+        std::tie(max_depth_, rr_depth_) = depth_params(p, "gbdpt");
+        strategy_ = p.get_string("strategy", "all");
+        if (strategy_ != "all") {
+            // "s,t": that strategy alone, its base and offset weighed against each other only.
+            const auto comma = strategy_.find(',');
+            const auto number = [&](std::string_view v, int& out) {
+                const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), out);
+                return ec == std::errc() && end == v.data() + v.size();
+            };
+            if (comma == std::string::npos || !number(std::string_view(strategy_).substr(0, comma), only_.s) ||
+                !number(std::string_view(strategy_).substr(comma + 1), only_.t) || only_.s < 0 || only_.t < 1 ||
+                (only_.s == 1 && only_.t == 1) || only_.s + only_.t < 3)
+                throw ParameterError("gbdpt: strategy must be all, or s,t with s >= 0, t >= 1, s + t >= 3 and "
+                                     "(s, t) != (1, 1), got '" + strategy_ + "'");
+            one_ = true;
+        }
+        batch_ = batch_param(p, "gbdpt", 16);
+        const std::string rec = p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "none"});
+        solve_weighted_ = rec == "all" || rec == "weighted";
+        solve_l1_ = rec == "all" || rec == "l1+l2" || rec == "l1";
+        solve_l2_ = rec == "all" || rec == "l1+l2" || rec == "l2";
+        rec_ = rec;
+        alpha_ = p.get_real("alpha", 0.2);
+        if (!(alpha_ > 0.0)) throw ParameterError("gbdpt: alpha must be positive");
+    }
+
+    std::string describe() const override {
+        return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
+               "\ndrop=" + fmt::format("{}", drop_) + "\nmax_depth=" + std::to_string(max_depth_) +
+               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\nreconstruct=" + rec_ +
+               "\nalpha=" + fmt::format("{}", alpha_) + "\n";
+    }
+
+protected:
+    void prepare(const Scene& scene) override {
+        if (scene.environment())
+            throw ParameterError("gbdpt: scenes with an environment light are not supported (a vertex at infinity "
+                                 "cannot be reconnected to); render them with bdpt or gpt");
+    }
+
+    std::vector<SlotSpec> slots() const override {
+        std::vector<SlotSpec> s{{"self", 3, true}};
+        for (int d = 0; d < kDirs; ++d) s.push_back({kGradSlot[d], 3, true});
+        for (int d = 0; d < kDirs; ++d) s.push_back({kSplatSlot[d], 3, true});
+        s.push_back({"direct", 3, false});
+        s.push_back({"albedo", 3, false});
+        s.push_back({"normal", 3, false});
+        s.push_back({"depth", 1, false});
+        return s;
+    }
+    // Light tracing's share: the primal (0) and the gradient towards each neighbour (1 + d).
+    int splat_layers() const override { return 1 + kDirs; }
+    int batch_size() const override { return batch_; }
+
+    void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const override {
+        SampleJob job{x, y, sampler, nullptr};
+        sample_batch(scene, &job, 1, out, 0, rays);
+    }
+
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int j = 0; j < n; ++j) estimate(scene, jobs[j], out + size_t(j) * stride, rays);
+    }
+
+    void finalize(const Accumulated& acc, FrameBuffer& out) const override {
+        const int W = out.width(), H = out.height();
+        Image primal(W, H, 3), primal_var(W, H, 3), dx(W, H, 3), dy(W, H, 3), dx_var(W, H, 3), dy_var(W, H, 3);
+        const int self = acc.slot("self");
+        int splat[kDirs], grad[kDirs];
+        for (int d = 0; d < kDirs; ++d) splat[d] = acc.slot(kSplatSlot[d]), grad[d] = acc.slot(kGradSlot[d]);
+        // Each one-sided gradient: the pixel's own samples plus the light tracing that landed in it.
+        const auto g = [&](int d, int x, int y) { return acc.mean_rgb(grad[d], x, y) + acc.splat_mean(1 + d, x, y); };
+        const auto gv = [&](int d, int x, int y) {
+            return acc.variance_rgb(grad[d], x, y) + acc.splat_variance(1 + d, x, y);
+        };
+        tbb::parallel_for(0, H, [&](int y) {
+            for (int x = 0; x < W; ++x) {
+                Color p = acc.mean_rgb(self, x, y) + acc.splat_mean(0, x, y);
+                Color pv = acc.variance_rgb(self, x, y) + acc.splat_variance(0, x, y);
+                for (int d = 0; d < kDirs; ++d) {
+                    const int qx = x - kDx[d], qy = y - kDy[d];
+                    if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
+                    p += acc.mean_rgb(splat[d], qx, qy);
+                    pv += acc.variance_rgb(splat[d], qx, qy);
+                }
+                primal.set_rgb(x, y, p);
+                primal_var.set_rgb(x, y, pv);
+                if (x + 1 < W) {
+                    dx.set_rgb(x, y, g(0, x, y) - g(1, x + 1, y));
+                    dx_var.set_rgb(x, y, gv(0, x, y) + gv(1, x + 1, y));
+                }
+                if (y + 1 < H) {
+                    dy.set_rgb(x, y, g(2, x, y) - g(3, x, y + 1));
+                    dy_var.set_rgb(x, y, gv(2, x, y) + gv(3, x, y + 1));
+                }
+            }
+        });
+        std::vector<Image> im = acc.images({{"direct"}, {"albedo"}, {"normal"}, {"depth"}});
+        Image color(W, H, 3);
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) color.set_rgb(x, y, primal.rgb(x, y) + im[0].rgb(x, y));
+        out.set("color", std::move(color));
+        out.set("primal", std::move(primal));
+        out.set("dx", std::move(dx));
+        out.set("dy", std::move(dy));
+        out.set("direct", std::move(im[0]));
+        out.set("primal_variance", std::move(primal_var));
+        out.set("dx_variance", std::move(dx_var));
+        out.set("dy_variance", std::move(dy_var));
+        if (acc.derived) reconstruct_layers(out, acc.spp);
+        out.set("albedo", std::move(im[1]));
+        out.set("normal", std::move(im[2]));
+        out.set("depth", std::move(im[3]));
+    }
+
+public:
+    void update_merged(FrameBuffer& merged) const override { reconstruct_layers(merged, 0); }
+
+private:
+    // The reconstructions of the primal and gradients, with the directly
+    // visible emitters added back (as gpt writes them).
+    void reconstruct_layers(FrameBuffer& fb, int64_t spp) const {
+        GradientBuffers gb = gradient_buffers(fb);
+        Image spp_image;
+        if (!gb.spp && spp > 0) {
+            spp_image = Image(fb.width(), fb.height(), 1);
+            std::fill(spp_image.values().begin(), spp_image.values().end(), float(spp));
+            gb.spp = &spp_image;
+        }
+        if (solve_weighted_) fb.set("reconstruction_weighted", reconstruct("poisson-weighted", Params("gbdpt"), gb));
+        Params rp("gbdpt");
+        rp.set("alpha", alpha_);
+        if (solve_l1_) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
+        if (solve_l2_) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
+    }
+
+    // Connectability of a subpath vertex for a connection (endpoints always).
+    bool connectable(const Vertex& v) const {
+        if (v.type != VertexType::Surface) return !v.infinite;
+        if (v.infinite) return false;
+        const Material& m = *v.si.material;
+        return !m.pure_delta && !m.black && m.min_roughness > drop_;
+    }
+
+    // Per-thread scratch: kept between samples, so a sample allocates nothing once warm.
+    struct Scratch {
+        CameraPath cam;
+        Subpath light, first;  // first: an offset camera subpath of light tracing, camera and first hit
+        CameraPath synth;      // the base as the shift sees it when the reconnection is the connection
+        OffsetSubpath off[kDirs];
+        std::vector<uint8_t> cflag, lflag, oflag[kDirs], fx, fy, ax, ay, px, py;
+        PathDensities dx, dy;
+        std::vector<double> rx, ry;
+    };
+
+    // The shift's step at depth k of a base whose vertex after x_k is `next`
+    // (a light-side vertex): the base's vertices 0..k are `prefix`'s, as the
+    // camera side sees them.
+    ShiftStep step_onto(const Scene& scene, Scratch& S, const Vertex* prefix, int k, const Vertex& next,
+                        const OffsetVertex& y) const {
+        CameraPath& b = S.synth;
+        b.v.assign(prefix, prefix + k + 1);
+        Vertex& xk = b.v[k];
+        if (!xk.scattered()) {
+            // The camera walk stopped at x_k: only a reconnection reads this step, and it needs positions only.
+            xk.bs = BsdfSample{};
+            xk.bs.pdf = 1.f;
+        }
+        Vertex& nx = b.v.emplace_back(next);
+        if (nx.type == VertexType::Light) nx.si.material = emitter_material(scene, next);
+        nx.type = VertexType::Surface;
+        b.nee.resize(b.v.size());
+        return shift_->step(ShiftStepInput{scene, config_, b, size_t(k), y, true});
+    }
+
+    // Light vertex q seen from the camera side: its incoming direction is the
+    // one towards the camera-side vertex `towards`, its sampled direction the
+    // one towards `away` (only a reconnection at it reads positions alone).
+    static Vertex camera_side(const Vertex& q, const Vertex& towards, const Vertex& away) {
+        Vertex v = q;
+        v.type = VertexType::Surface;
+        v.wo = glm::normalize(towards.si.p - q.si.p);
+        v.bs = BsdfSample{};
+        v.bs.wi = q.si.frame.to_local(glm::normalize(away.si.p - q.si.p));
+        v.bs.pdf = 1.f;
+        v.bs.lobe = v.bs.wi.z * q.si.frame.to_local(v.wo).z > 0.f ? kReflection : kTransmission;
+        v.rr_survival = 1.f;
+        return v;
+    }
+
+    void estimate(const Scene& scene, SampleJob& job, float* o, uint64_t& rays) const {
+        thread_local Scratch S;
+        const int W = scene.camera().width(), H = scene.camera().height();
+        const WalkOptions cam_opt{max_depth_, rr_depth_};
+        const WalkOptions light_opt{max_depth_ > 0 ? max_depth_ - 1 : -1, rr_depth_};
+        const Sampler& sampler = job.sampler;
+        const Vec2 film = Vec2(float(job.x), float(job.y)) + sampler.at2(dims::kFilm);
+        CameraPath& cam = S.cam;
+        trace_camera_subpath(scene, film, sampler, cam_opt, cam);
+        cam.film = film;
+        cam.nee.assign(cam.v.size(), LightConnection{});
+        trace_light_subpath(scene, sampler, light_opt, S.light);
+        const Subpath& light = S.light;
+        rays += cam.rays + light.rays;
+        write_aux(cam, o);
+        // A camera ray that misses still leaves light tracing (t = 1) its strategies.
+
+        bool inside[kDirs];
+        for (int d = 0; d < kDirs; ++d) {
+            const int nx = job.x + kDx[d], ny = job.y + kDy[d];
+            inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
+            S.off[d].p.v.clear();
+            if (inside[d]) walk_offset(scene, *shift_, config_, cam, Vec2(float(kDx[d]), float(kDy[d])), S.off[d], rays);
+            S.oflag[d].resize(size_t(S.off[d].size()));
+            for (int k = 0; k < S.off[d].size(); ++k) S.oflag[d][k] = k == 0 || connectable(S.off[d].p.v[k]);
+        }
+        S.cflag.resize(cam.v.size());
+        for (size_t k = 0; k < cam.v.size(); ++k) S.cflag[k] = k == 0 || connectable(cam.v[k]);
+        S.lflag.resize(light.v.size());
+        for (size_t j = 0; j < light.v.size(); ++j) S.lflag[j] = j == 0 || connectable(light.v[j]);
+
+        const auto put = [&](int slot, const Color& c) {
+            o[3 * slot] += c.r, o[3 * slot + 1] += c.g, o[3 * slot + 2] += c.b;
+        };
+        const int s_max = std::max(light.size(), scene.has_lights() ? 1 : 0);
+        for (int t = 1; t <= cam.size(); ++t)
+            for (int s = 0; s <= s_max; ++s) {
+                const int n = s + t;
+                if (n < 2 || (s == 1 && t == 1)) continue;
+                if (max_depth_ > 0 && n - 1 > max_depth_) break;
+                if (one_ && (s != only_.s || t != only_.t)) continue;
+                strategy(scene, S, job, s, t, inside, put, rays);
+            }
+    }
+
+    template <class Put>
+    void strategy(const Scene& scene, Scratch& S, SampleJob& job, int s, int t, const bool* inside, const Put& put,
+                  uint64_t& rays) const {
+        const CameraPath& cam = S.cam;
+        const Subpath& light = S.light;
+        const Sampler& sampler = job.sampler;
+        const int n = s + t;
+        if (cam.v[t - 1].infinite) return;
+        // The light end of the connection: s = 1 samples its own point, with the camera vertex's numbers.
+        Vertex sampled;
+        const Vertex* lend = nullptr;
+        if (s == 1) {
+            const Vertex& pt = cam.v[t - 1];
+            const LightSample ls =
+                scene.sample_emitter_point(pt.u_light, sampler.at2(dims::vertex(t - 1) + dims::kLightPoint));
+            if (!(ls.pdf_a > 0.f) || ls.infinite) return;
+            sampled.type = VertexType::Light;
+            sampled.si.p = ls.p, sampled.si.ng = ls.n, sampled.si.frame = Frame(ls.n), sampled.si.prim = ls.prim;
+            sampled.le = ls.radiance;
+            sampled.pdf_fwd = ls.pdf_a;
+            sampled.beta = ls.radiance / ls.pdf_a;
+            lend = &sampled;
+        } else if (s >= 2) {
+            lend = &light.v[s - 1];
+        }
+        // The full path's connectability flags, camera end first.
+        std::vector<uint8_t>& fx = S.fx;
+        fx.assign(size_t(n), 0);
+        for (int i = 0; i < t; ++i) fx[i] = S.cflag[i];
+        for (int j = 0; j < s; ++j) fx[n - 1 - j] = j == 0 ? 1 : S.lflag[j];
+        fx[0] = 1, fx[n - 1] = 1;
+        connection_densities(scene, light, cam, {s, t}, lend, S.dx);
+        if (!(one_ || kept(fx.data(), S.dx, t))) return;
+        if (one_ && !strategy_possible(S.dx, t)) return;
+
+        // The base's unweighted value.
+        Vec2 film_x(0.f);
+        if (t == 1 && !film_point(scene, cam.v[0], *lend, film_x)) return;
+        const ConnectionResult cx = connect(scene, light, cam, {s, t}, sampler, StrategySet{}, false, rays);
+        if (t == 1 && cx.occluded) return;  // the camera does not see x_1: no camera-side shift, and f(x) = 0
+        const Color vx = cx.value;
+        // f(x) = 0 (visibility aside): nothing to contribute, and never paired.
+        if (is_black(vx) && !cx.occluded) return;
+        if (n == 2) {
+            put(kDirect, vx);  // directly visible emitters stay out of the gradients
+            return;
+        }
+        strategy_density_ratios(S.dx, t, S.rx);
+        std::vector<uint8_t>& ax = S.ax;
+        ax.assign(size_t(n) + 1, 0);
+        for (int u = 1; u <= n; ++u) ax[u] = one_ ? u == t : kept(fx.data(), S.dx, u);
+        const int cxp = first_pair(fx.data(), n);
+        const int px0 = int(std::floor(film_x.x)), py0 = int(std::floor(film_x.y));
+
+        for (int d = 0; d < kDirs; ++d) {
+            const Vec2 delta(float(kDx[d]), float(kDy[d]));
+            const bool has_neighbour =
+                t >= 2 ? inside[d]
+                       : px0 + kDx[d] >= 0 && py0 + kDy[d] >= 0 && px0 + kDx[d] < scene.camera().width() &&
+                             py0 + kDy[d] < scene.camera().height();
+            // Base alone: only x's strategies (a blocked connection: only its own).
+            const auto base_only_weight = [&]() {
+                S.px = ax;
+                if (cx.occluded) std::fill(S.px.begin(), S.px.end(), 0), S.px[t] = 1;
+                return 1.0 / sum_over(S.rx, S.px);
+            };
+            const auto add_base = [&](double w) {
+                if (t >= 2) put(kSelf, float(0.25 * w) * vx);
+                else if (job.splats) job.splats->add(film_x, float(0.25 * w) * vx, 0);
+            };
+            if (!has_neighbour) {
+                if (!is_black(vx)) add_base(base_only_weight());
+                continue;
+            }
+            // The offset of this strategy's path.
+            bool defined = false, occluded_y = false;
+            int blocked_y = -1;  // first vertex of y's blocked traced segment, if any
+            Color vy(0.f);
+            double R = 0.0;
+            std::vector<uint8_t>& fy = S.fy;
+            fy.assign(size_t(n), 0);
+            for (int j = 0; j < s; ++j) fy[n - 1 - j] = fx[n - 1 - j];
+            fy[0] = 1;
+            if (t >= 2) {
+                const OffsetSubpath& off = S.off[d];
+                if (off.size() >= t) {
+                    for (int i = 0; i < t; ++i) fy[i] = S.oflag[d][i];
+                    fy[n - 1] = 1;
+                    int b = kNone;
+                    if (off.b <= t - 2) {
+                        b = off.b;
+                        if (off.blocked) blocked_y = b;
+                    } else if (s >= 1) {
+                        const ShiftStep st = step_onto(scene, S, cam.v.data(), t - 1, *lend, off.y[t - 1]);
+                        if (st.kind == ShiftStep::Kind::Reconnect) b = t - 1;
+                    }
+                    const int cyp = first_pair(fy.data(), n);
+                    defined = b == kNone ? (s == 0 && cxp == kNone && cyp == kNone) : (b <= cxp && b <= cyp);
+                    if (defined) {
+                        const ConnectionResult cy =
+                            connect(scene, light, off.p, {s, t}, sampler, StrategySet{}, false, rays);
+                        vy = cy.value;
+                        occluded_y = cy.occluded;
+                        // A pair is formed only where both paths carry a non-zero f
+                        // (visibility aside): the rule is the same seen from either path.
+                        if (is_black(vy) && !occluded_y) defined = false;
+                        // connect() tests the connection's segment only: a blocked
+                        // reconnection before it zeroes y as well.
+                        if (blocked_y >= 0) vy = Color(0.f);
+                        connection_densities(scene, light, off.p, {s, t}, lend, S.dy);
+                        strategy_density_ratios(S.dy, t, S.ry);
+                        R = off.r[t - 1];
+                    }
+                }
+            } else {
+                // Light tracing: the camera ray through the neighbour's film point, reconnected to z_2.
+                Subpath& c1 = S.first;
+                trace_camera_subpath(scene, scene.camera().generate_ray(film_x + delta), sampler,
+                                     WalkOptions{1, rr_depth_}, c1);
+                rays += c1.rays;
+                if (c1.size() >= 2) {
+                    const Vertex& z2 = light.v[s - 2];
+                    const Vertex prefix[2] = {cam.v[0], camera_side(light.v[s - 1], cam.v[0], z2)};
+                    OffsetVertex y1;
+                    y1.si = c1.v[1].si;
+                    y1.wo = y1.si.frame.to_local(c1.v[1].wo);
+                    const ShiftStep st = step_onto(scene, S, prefix, 1, z2, y1);
+                    if (st.kind == ShiftStep::Kind::Reconnect) {
+                        defined = true;
+                        fy[1] = connectable(c1.v[1]);
+                        for (int i = 2; i < n; ++i) fy[i] = fx[i];
+                        // (s - 1, 2) on the offset's camera subpath is the same path y.
+                        connection_densities(scene, light, c1, {s - 1, 2}, &light.v[s - 2], S.dy);
+                        const Color v = join(z2, c1.v[1]);
+                        if (!is_black(v)) {
+                            ++rays;
+                            if (segment_visible(scene, z2, c1.v[1])) vy = v;
+                            else occluded_y = true;
+                        } else {
+                            defined = false;  // f(y) = 0: no pair (see the t >= 2 case)
+                        }
+                        // f(y)|J|/p(x): p_{s-1,2}(y)|J| / p_{s,1}(x) = fwd_x[1] / rev_x[1].
+                        vy *= float(S.dx.fwd[1] / S.dx.rev[1]);
+                        R = (S.dx.fwd[1] / S.dy.fwd[1]) * (S.dy.rev[1] / S.dx.rev[1]);
+                        strategy_density_ratios(S.dy, 1, S.ry);
+                        if (occluded_y) blocked_y = 1, occluded_y = false;  // y's segment (1, 2), not its t = 1 connection
+                        if (!std::isfinite(R) || !std::isfinite(vy.r + vy.g + vy.b)) defined = false;
+                    }
+                }
+            }
+            if (!defined) {
+                if (!is_black(vx)) {
+                    const double w = base_only_weight();
+                    add_base(w);
+                    if (t >= 2) put(kGrad + d, float(-w) * vx);
+                    else if (job.splats) job.splats->add(film_x, float(-w) * vx, 1 + d);
+                }
+                continue;
+            }
+            if (is_black(vx) && is_black(vy)) continue;
+            // The strategies kept for the pair, and those that can produce each path.
+            std::vector<uint8_t>& ay = S.ay;
+            ay.assign(size_t(n) + 1, 0);
+            for (int u = 1; u <= n; ++u) ay[u] = one_ ? u == t : ax[u] && kept(fy.data(), S.dy, u);
+            if (!ay[t]) continue;  // this pair does not keep the base's strategy
+            S.px = ay, S.py = ay;
+            const bool occ_x = cx.occluded;
+            if (occ_x) std::fill(S.px.begin(), S.px.end(), 0), S.px[t] = 1;
+            if (blocked_y >= 0 && occluded_y) {
+                std::fill(S.py.begin(), S.py.end(), 0);  // two blocked segments: no strategy produces y
+            } else if (blocked_y >= 0 || occluded_y) {
+                const int u = blocked_y >= 0 ? blocked_y + 1 : t;  // the strategy connecting across the blocked segment
+                const bool keep = ay[u];
+                std::fill(S.py.begin(), S.py.end(), 0);
+                S.py[u] = keep;
+            }
+            const double w = 1.0 / (sum_over(S.rx, S.px) + R * sum_over(S.ry, S.py));
+            if (!std::isfinite(w)) continue;
+            if (t >= 2) {
+                put(kSelf, float(0.25 * w) * vx);
+                put(kSplat + d, float(0.25 * w) * vy);
+                put(kGrad + d, float(w) * (vy - vx));
+            } else if (job.splats) {
+                job.splats->add(film_x, float(0.25 * w) * vx, 0);
+                job.splats->add(film_x + delta, float(0.25 * w) * vy, 0);
+                job.splats->add(film_x, float(w) * (vy - vx), 1 + d);
+            }
+        }
+    }
+
+    // Albedo and normal at the first connectable camera vertex, depth of the first hit.
+    void write_aux(const CameraPath& cam, float* o) const {
+        if (cam.size() < 2 || cam.v[1].infinite) return;
+        float* aux = o + 3 * kAux;
+        aux[6] = cam.v[1].si.t;
+        for (int k = 1; k < cam.size(); ++k) {
+            const Vertex& v = cam.v[k];
+            if (v.infinite) return;
+            if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
+                k + 1 < cam.size())
+                continue;
+            const Color a = v.si.material->bsdf->albedo(v.si.uv);
+            aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
+            aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
+            return;
+        }
+    }
+
+    std::unique_ptr<Shift> shift_;
+    std::string shift_name_;
+    ShiftConfig config_;
+    float drop_ = 0.001f;
+    int max_depth_ = -1, rr_depth_ = 5;
+    std::string strategy_ = "all";
+    bool one_ = false;
+    Connection only_;
+    int batch_ = 16;
+    std::string rec_ = "all";
+    bool solve_weighted_ = true, solve_l1_ = true, solve_l2_ = true;
+    double alpha_ = 0.2;
+};
+
+}  // namespace
+
+void register_gbdpt(Registry<Integrator>& r) {
+    r.add("gbdpt",
+          "gradient-domain bidirectional path tracing (params: shift, threshold, drop, max_depth, rr_depth, "
+          "strategy=all|s,t, reconstruct, alpha, batch)",
+          [](const Params& p) { return std::make_unique<GradientBdpt>(p); });
+}
+
+}  // namespace gdr
