@@ -1,5 +1,5 @@
 // Equal-time comparison of PT, G-PT + L1, G-PT + L2, G-PT + variance-weighted
-// Poisson (L2 and L1 forms) and BDPT on real scenes.
+// Poisson (L2 and L1 forms), BDPT and G-BDPT + L1 / L2 on real scenes.
 //
 // For each scene: a cached high-spp PT reference, then for every time budget
 // of a geometric series one PT, one G-PT and one BDPT render (interleaved, so
@@ -17,7 +17,7 @@
 // Usage: bench_equal_time [--quick] [--references-only] [--refresh-references]
 //          [--scenes a,b] [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..]
 //          [--ref-spp N] [--set key=value]... [--l1-set key=value]...
-//          [--weighted NAME:key=value,...]... [--no-bdpt]
+//          [--weighted NAME:key=value,...]... [--no-bdpt] [--no-gbdpt]
 //          [--out DIR] [--cache DIR] [--docs DIR] [--threads N]
 //
 //   --scenes a,b      built-in scenes by name (see --help); all six by default
@@ -36,6 +36,7 @@
 //                     these parameters (repeatable); replaces the default rows
 //                     gpt-w1 (poisson-weighted's defaults: L1) and gpt-w2 (norm=l2).
 //   --no-bdpt         leaves BDPT out (a third of the run time).
+//   --no-gbdpt        leaves G-BDPT out (it is timed as G-PT: render + solve).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -87,7 +88,7 @@ struct Options {
     std::vector<SceneSpec> scenes;  // in the order given
     std::vector<std::string> gpt_sets, l1_sets;  // "key=value" texts, in the order given
     std::vector<std::pair<std::string, std::string>> weighted;  // (row name, "k=v,k=v") of poisson-weighted rows
-    bool bdpt = true;
+    bool bdpt = true, gbdpt = true;
     // 192 px and 8 s keep the full run, references included, near 20 minutes on 2 cores.
     int width = 192;
     std::vector<double> budgets{0.25, 0.5, 1, 2, 4, 8};
@@ -157,6 +158,7 @@ Options parse(int argc, char** argv) {
                 throw ParameterError("--weighted '" + v + "': expected NAME:key=value,... with a plain NAME");
             o.weighted.push_back({"gpt-" + name, colon == std::string::npos ? "" : v.substr(colon + 1)});
         } else if (a == "--no-bdpt") o.bdpt = false;
+        else if (a == "--no-gbdpt") o.gbdpt = false;
         else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
             o.budgets.clear();
@@ -177,6 +179,7 @@ Options parse(int argc, char** argv) {
                         "  --l1-set      a poisson-l1 parameter, e.g. preset=reference, iterations=N\n"
                         "  --weighted    NAME:k=v,... a poisson-weighted row gpt-NAME (default rows w1: its defaults, w2: norm=l2)\n"
                         "  --no-bdpt     leave BDPT out\n"
+                        "  --no-gbdpt    leave G-BDPT out\n"
                         "G-PT times include the reconstruction: equal time charges everything.\n"
                         "built-in scenes:");
             for (const SceneSpec& s : kAllScenes) std::printf(" %s", s.name.c_str());
@@ -299,10 +302,12 @@ struct Equal {
 };
 
 // The fixed methods; the poisson-weighted rows (--weighted) follow them.
-constexpr int kNumFixed = 5;
-const char* const kFixedMethods[kNumFixed] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal", "bdpt"};
-const Rgb8 kFixedColors[kNumFixed] = {{30, 30, 30}, {215, 48, 39}, {44, 123, 182}, {120, 170, 90}, {150, 80, 170}};
-const char* const kFixedLabels[kNumFixed] = {"PT", "G-PT + L1", "G-PT + L2", "G-PT primal (no solve)", "BDPT"};
+constexpr int kNumFixed = 7;
+const char* const kFixedMethods[kNumFixed] = {"pt", "gpt-l1", "gpt-l2", "gpt-primal", "bdpt", "gbdpt-l1", "gbdpt-l2"};
+const Rgb8 kFixedColors[kNumFixed] = {{30, 30, 30},   {215, 48, 39}, {44, 123, 182}, {120, 170, 90},
+                                      {150, 80, 170}, {240, 90, 190}, {100, 60, 30}};
+const char* const kFixedLabels[kNumFixed] = {"PT",   "G-PT + L1",     "G-PT + L2",    "G-PT primal (no solve)",
+                                             "BDPT", "G-BDPT + L1", "G-BDPT + L2"};
 const Rgb8 kWeightedColors[] = {{230, 145, 30}, {0, 150, 150}, {200, 60, 150}, {110, 110, 0}, {90, 90, 220}, {160, 100, 40}};
 
 // The parameters of a poisson-weighted row: alpha is not one of them (the colour weights come from the variances).
@@ -489,9 +494,10 @@ int main(int argc, char** argv) try {
     std::ostringstream summary;
     summary << kTimeCharge << "\n\n" << settings << "\n\n";
     summary << "| scene | resolution | PT relMSE at " << o.budgets.back()
-            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up | BDPT speed-up |";
+            << " s | reference relMSE (own noise) | G-PT+L1 speed-up | G-PT+L2 speed-up | G-PT primal speed-up | BDPT speed-up"
+               " | G-BDPT+L1 speed-up | G-BDPT+L2 speed-up |";
     for (size_t i = kNumFixed; i < methods.size(); ++i) summary << " " << methods[i] << " speed-up |";
-    summary << "\n|---|---|---|---|---|---|---|---|";
+    summary << "\n|---|---|---|---|---|---|---|---|---|---|";
     for (size_t i = kNumFixed; i < methods.size(); ++i) summary << "---|";
     summary << "\n";
     std::vector<std::string> console;
@@ -515,6 +521,8 @@ int main(int argc, char** argv) try {
         auto pt = integrator_registry().create("pt", Params());
         auto gpt = integrator_registry().create("gpt", gpt_params);
         auto bdpt = integrator_registry().create("bdpt", Params());
+        // G-BDPT with the G-PT rows' shift and depth settings, its solves timed here as G-PT's.
+        auto gbdpt = integrator_registry().create("gbdpt", gpt_params);
         // The L1 solve time (independent of the sample count) is taken out of G-PT's
         // render budget so that render + solve matches the budget.
         RenderSettings st;
@@ -587,6 +595,22 @@ int main(int argc, char** argv) try {
             rs = bdpt->render(*scene, st, fb);
             secs = since(t0);
             add(4, T, secs, secs, 0, rs.spp, fb.get("color"));
+            if (!o.gbdpt) continue;
+
+            st.seed = uint64_t(2001 + i);
+            st.time_budget = std::max(T - l1_est, 0.1 * T);
+            t0 = Clock::now();
+            rs = gbdpt->render(*scene, st, fb);
+            const double grender_s = since(t0);
+            const GradientBuffers gbb = gradient_buffers(fb);
+            t0 = Clock::now();
+            const Image gl1 = reconstruct("poisson-l1", l1_params, gbb);
+            const double gs1 = since(t0);
+            t0 = Clock::now();
+            const Image gl2 = reconstruct("poisson-l2", l2_params, gbb);
+            const double gs2 = since(t0);
+            add(5, T, grender_s + gs1, grender_s, gs1, rs.spp, gl1);
+            add(6, T, grender_s + gs2, grender_s, gs2, rs.spp, gl2);
         }
 
         // Speed-up at PT's error at the largest budget.
@@ -596,10 +620,22 @@ int main(int argc, char** argv) try {
         for (int m = 1; m < kNumMethods; ++m)
             if (!curve[m].empty()) reach[m] = time_to_reach(curve[m], last.error), sp[m] = fmt_speedup(last.seconds, reach[m], curve[m]);
         char line[512];
-        std::snprintf(line, sizeof line, "%-14s PT relMSE %.4g at %.1f s (ref own %.2g) | L1 %s | L2 %s | primal %s | BDPT %s",
+        std::snprintf(line, sizeof line,
+                      "%-14s PT relMSE %.4g at %.1f s (ref own %.2g) | L1 %s | L2 %s | primal %s | BDPT %s | G-BDPT L1 %s | "
+                      "G-BDPT L2 %s",
                       spec.name.c_str(), last.error, last.seconds, ref_self, sp[1].c_str(), sp[2].c_str(), sp[3].c_str(),
-                      sp[4].c_str());
+                      sp[4].c_str(), sp[5].c_str(), sp[6].c_str());
         std::string wline = line;
+        // G-BDPT's target is BDPT: the time each G-BDPT row needs to reach BDPT's relMSE at the largest budget.
+        if (!curve[4].empty() && !curve[5].empty()) {
+            const CurvePoint bd = curve[4].back();
+            char b[200];
+            std::snprintf(b, sizeof b, " | vs BDPT (relMSE %.4g at %.1f s): G-BDPT L1 %s, L2 %s, G-PT L1 %s", bd.error,
+                          bd.seconds, fmt_speedup(bd.seconds, time_to_reach(curve[5], bd.error), curve[5]).c_str(),
+                          fmt_speedup(bd.seconds, time_to_reach(curve[6], bd.error), curve[6]).c_str(),
+                          fmt_speedup(bd.seconds, time_to_reach(curve[1], bd.error), curve[1]).c_str());
+            wline += b;
+        }
         // Each weighted row: speed-up, the largest relMSE ratio to PT at an equal budget, the largest mean deviation.
         for (int m = kNumFixed; m < kNumMethods; ++m) {
             double worst = 0;

@@ -83,6 +83,7 @@ struct OffsetSubpath {
     std::vector<double> r;        // r[k]: |J| p(y)/p(x) of the camera walk up to y_k
     int b = kNone;                // depth of the reconnection y_b -> x_{b+1}
     bool blocked = false;         // that reconnection's segment is blocked (the path y exists, f(y) = 0)
+    int merged = kNone;           // first depth whose vertex is x's, entered from x's own previous vertex
     int size() const { return p.size(); }
 };
 
@@ -92,7 +93,7 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
                  const Vec2& delta, OffsetSubpath& o, uint64_t& rays) {
     o.p.mode = TransportMode::Radiance;
     o.p.v.clear(), o.y.clear(), o.r.clear();
-    o.b = kNone, o.blocked = false;
+    o.b = kNone, o.blocked = false, o.merged = kNone;
     if (x.size() < 2) return;
     const Ray ray = scene.camera().generate_ray(x.film + delta);
     ++rays;
@@ -138,6 +139,7 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
         o.p.v[k].delta = s.delta;
         if (yk.on_base) {
             // Same vertex, same outgoing direction: y is x from x_{k+1} on.
+            o.merged = int(k) + 1;
             for (size_t j = k + 1; j < x.size(); ++j) {
                 Vertex v = x.v[j];
                 v.beta = beta;
@@ -181,10 +183,14 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
     }
     // The offset's own densities, as its walk would have recorded them (a
     // delta step has none, as in walk_subpath).
+    // Past the merge the densities are x's: the vertices they read are x's.
     std::vector<Vertex>& v = o.p.v;
-    for (size_t k = 1; k < v.size(); ++k)
+    const size_t fwd_own = o.merged == kNone ? v.size() : size_t(o.merged) + 1;
+    const size_t rev_own = o.merged == kNone ? v.size() : size_t(o.merged) - 1;
+    for (size_t k = 1; k < v.size() && k < fwd_own; ++k)
         v[k].pdf_fwd = k >= 2 && v[k - 1].delta ? 0.0 : pdf_area(scene, k >= 2 ? &v[k - 2] : nullptr, v[k - 1], v[k]);
-    for (size_t k = 0; k + 2 < v.size(); ++k) v[k].pdf_rev = v[k + 1].delta ? 0.0 : pdf_area(scene, &v[k + 2], v[k + 1], v[k]);
+    for (size_t k = 0; k + 2 < v.size() && k < rev_own; ++k)
+        v[k].pdf_rev = v[k + 1].delta ? 0.0 : pdf_area(scene, &v[k + 2], v[k + 1], v[k]);
 }
 
 // First depth k >= 1 of a pair of connectable vertices z_k, z_{k+1} of a
@@ -592,11 +598,37 @@ private:
                     }
                     const int cyp = first_pair(fy.data(), n);
                     defined = b == kNone ? (s == 0 && cxp == kNone && cyp == kNone) : (b <= cxp && b <= cyp);
-                    if (defined) {
-                        const ConnectionResult cy =
-                            connect(scene, light, off.p, {s, t}, sampler, StrategySet{}, false, rays);
-                        vy = cy.value;
-                        occluded_y = cy.occluded;
+                    // Connecting at a merged vertex, y's connection is x's (same
+                    // points, same directions): its value scales with the throughput.
+                    const Color& bx = cam.v[t - 1].beta;
+                    const Color& by = off.p.v[t - 1].beta;
+                    const bool merged = off.merged <= t - 1 && (bx.r > 0.f || by.r == 0.f) &&
+                                        (bx.g > 0.f || by.g == 0.f) && (bx.b > 0.f || by.b == 0.f);
+                    if (defined && merged) {
+                        const auto ratio = [](float a, float b) { return a > 0.f ? b / a : 0.f; };
+                        vy = vx * Color(ratio(bx.r, by.r), ratio(bx.g, by.g), ratio(bx.b, by.b));
+                        occluded_y = cx.occluded;
+                        if (is_black(vy) && !occluded_y) defined = false;
+                        if (blocked_y >= 0) vy = Color(0.f);
+                        // Only the densities of y's own vertices and of the two after them differ.
+                        S.dy = S.dx;
+                        for (int i = 0; i <= off.merged; ++i) S.dy.fwd[i] = off.p.v[i].pdf_fwd;
+                        for (int i = 0; i <= off.merged - 2; ++i)
+                            S.dy.rev[i] = off.p.v[i].pdf_rev, S.dy.delta[i] = off.p.v[i].delta;
+                        strategy_density_ratios(S.dy, t, S.ry);
+                        R = off.r[t - 1];
+                    } else if (defined) {
+                        if (s >= 1 && off.b == t - 2) {
+                            // y_{t-1} is x_{t-1} entered from y_{t-2}: the same segment to
+                            // the light side, so x's visibility is y's.
+                            vy = cx.occluded ? Color(0.f) : join(*lend, off.p.v[t - 1]);
+                            occluded_y = cx.occluded && !is_black(join(*lend, off.p.v[t - 1]));
+                        } else {
+                            const ConnectionResult cy =
+                                connect(scene, light, off.p, {s, t}, sampler, StrategySet{}, false, rays);
+                            vy = cy.value;
+                            occluded_y = cy.occluded;
+                        }
                         // A pair is formed only where both paths carry a non-zero f
                         // (visibility aside): the rule is the same seen from either path.
                         if (is_black(vy) && !occluded_y) defined = false;
