@@ -79,6 +79,29 @@ TEST_CASE("gbdpt gradients are unbiased: E[dx], E[dy] equal differences of the b
     }
 }
 
+TEST_CASE("gbdpt on veach-bidir: unbiased primal and gradients for every built-in shift", "[gbdpt][statistical]") {
+    // The lamp's glass makes block means heavy-tailed (see the bdpt tests):
+    // 12 x 12 blocks, a 128-spp bdpt reference; 4 blocks a layer, |z| < 4.5.
+    const int res = 24, block = 12, runs = 16;
+    const SceneFile sf = scene_at("scenes/veach-bidir/scene.json", res);
+    const std::vector<FrameBuffer> ref = render_runs(*sf.scene, "bdpt", Params(), 128, runs, 1000);
+    const BlockStats ref_c = grey_stats(ref, "color", block);
+    const BlockStats ref_dx = difference_stats(ref, "color", true, block);
+    const BlockStats ref_dy = difference_stats(ref, "color", false, block);
+    for (const char* shift : kShifts) {
+        const std::vector<FrameBuffer> g = render_runs(*sf.scene, "gbdpt", params({{"shift", shift}}), 16, runs, 1);
+        const BlockStats c = grey_stats(g, "color", block);
+        const double z = max_z(c, ref_c), zx = max_z(gradient_stats(g, "dx", true, block), ref_dx),
+                     zy = max_z(gradient_stats(g, "dy", false, block), ref_dy);
+        INFO(shift);
+        CAPTURE(z, zx, zy);
+        CHECK(z < 4.5);
+        CHECK(zx < 4.5);
+        CHECK(zy < 4.5);
+        CHECK(max_z(scaled(c, 0.9), ref_c) > 4.5);  // power: 10% too dark is rejected
+    }
+}
+
 TEST_CASE("gbdpt primal equals bdpt in expectation", "[gbdpt][statistical]") {
     const int res = 24, runs = 16;  // 16 blocks a case: |z| < 4.5
     for (const std::string variant : {"Original", "Glossy", "Sphere"}) {

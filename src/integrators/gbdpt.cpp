@@ -52,6 +52,7 @@
 #include "gdr/path/dims.h"
 #include "gdr/path/trace.h"
 #include "gdr/reconstruct/reconstructor.h"
+#include "gdr/shift/bidir.h"
 #include "gdr/shift/offset_path.h"
 
 namespace gdr {
@@ -66,132 +67,7 @@ const char* const kSplatSlot[kDirs] = {"s+x", "s-x", "s+y", "s-y"};
 // First RGB triple of each slot in a sample's output (slots() order), then
 // albedo, normal and depth (7 floats) from triple kAux.
 constexpr int kSelf = 0, kGrad = 1, kSplat = kGrad + kDirs, kDirect = kSplat + kDirs, kAux = kDirect + 1;
-constexpr int kNone = std::numeric_limits<int>::max();
-
-// The material an emitter point is on (light vertices carry none).
-const Material* emitter_material(const Scene& scene, const Vertex& v) {
-    return &scene.materials()[scene.mesh().material_ids[v.si.prim]];
-}
-
-// The camera subpath of an offset, y_0 (the camera) .. y_m: beta is the
-// offset's throughput in the base's measure, f(y)|J|/p(x) of its prefix, and
-// the densities are its own, so the core's connect() and
-// connection_densities() evaluate it as they do a camera subpath.
-struct OffsetSubpath {
-    Subpath p;
-    std::vector<OffsetVertex> y;  // y_k as shift steps read it
-    std::vector<double> r;        // r[k]: |J| p(y)/p(x) of the camera walk up to y_k
-    int b = kNone;                // depth of the reconnection y_b -> x_{b+1}
-    bool blocked = false;         // that reconnection's segment is blocked (the path y exists, f(y) = 0)
-    int merged = kNone;           // first depth whose vertex is x's, entered from x's own previous vertex
-    int size() const { return p.size(); }
-};
-
-// Walks the offset of camera subpath x towards the pixel displaced by
-// `delta`, until it ends, fails, or merges with x.
-void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& x,
-                 const Vec2& delta, OffsetSubpath& o, uint64_t& rays) {
-    o.p.mode = TransportMode::Radiance;
-    o.p.v.clear(), o.y.clear(), o.r.clear();
-    o.b = kNone, o.blocked = false, o.merged = kNone;
-    if (x.size() < 2) return;
-    const Ray ray = scene.camera().generate_ray(x.film + delta);
-    ++rays;
-    OffsetVertex y1;
-    if (!scene.intersect(ray, y1.si)) return;
-    y1.wo = y1.si.frame.to_local(-ray.d);
-    o.p.v.push_back(x.v[0]);
-    o.y.emplace_back();
-    o.r.push_back(1.0);
-    {
-        Vertex& v = o.p.v.emplace_back();
-        v.si = y1.si, v.wo = -ray.d, v.beta = x.v[1].beta;
-        v.u_light = x.v[1].u_light, v.u_classify = x.v[1].u_classify;
-    }
-    o.y.push_back(y1);
-    o.r.push_back(1.0);
-    for (size_t k = 1; k + 1 < x.size(); ++k) {
-        const Vertex& xk = x.v[k];
-        if (!xk.scattered()) break;
-        const Vertex& next = x.v[k + 1];
-        const OffsetVertex yk = o.y[k];
-        ShiftStep s;
-        if (yk.on_base) {
-            // y_k is x_k entered from elsewhere: it leaves along the base's direction (|J| = 1).
-            const Bsdf& bsdf = *yk.si.material->bsdf;
-            s.kind = ShiftStep::Kind::Direction, s.wi = xk.bs.wi, s.jacobian = 1.0;
-            if (xk.bs.is_delta()) {
-                const auto e = bsdf.eval_delta(yk.wo, s.wi, yk.si.uv);
-                if (!e) break;
-                s.f = e->f, s.pdf = e->pdf, s.delta = true;
-            } else {
-                const BsdfEval fe = bsdf.eval_pdf(yk.wo, s.wi, yk.si.uv);
-                s.f = fe.f, s.pdf = fe.pdf;
-            }
-            if (is_black(s.f) || !(s.pdf > 0.f)) break;
-        } else {
-            s = shift.step(ShiftStepInput{scene, config, x, k, yk, true});
-            if (s.kind == ShiftStep::Kind::Fail) break;
-        }
-        const double inv_pdf = 1.0 / double(xk.bs.pdf);
-        Color beta = o.p.v[k].beta * s.f * float(abs_cos_theta(s.wi) * s.jacobian * inv_pdf / xk.rr_survival);
-        const double r = o.r[k] * double(s.pdf) * s.jacobian * inv_pdf;
-        o.p.v[k].delta = s.delta;
-        if (yk.on_base) {
-            // Same vertex, same outgoing direction: y is x from x_{k+1} on.
-            o.merged = int(k) + 1;
-            for (size_t j = k + 1; j < x.size(); ++j) {
-                Vertex v = x.v[j];
-                v.beta = beta;
-                o.p.v.push_back(v);
-                o.y.emplace_back();
-                o.r.push_back(r);
-                if (!x.v[j].scattered()) break;
-                beta *= scatter_weight(x.v[j]);
-            }
-            break;
-        }
-        OffsetVertex ny;
-        Vertex v;
-        if (s.kind == ShiftStep::Kind::Reconnect) {
-            o.b = int(k);
-            if (s.visibility_deferred) {
-                ++rays;
-                o.blocked = !scene.visible(yk.si.p, yk.si.ng, next.si.p, next.si.ng);
-            }
-            const Vec3 w = glm::normalize(yk.si.p - next.si.p);
-            ny.si = next.si, ny.on_base = true, ny.wo = next.si.frame.to_local(w);
-            v = next;
-            v.wo = w;
-        } else {
-            const Ray r2 = spawn_ray(yk.si, yk.si.frame.to_world(s.wi));
-            ++rays;
-            if (!scene.intersect(r2, ny.si)) break;
-            // The inverse would have reconnected at a connectable y_{k+1}.
-            if (s.reject_if_connectable && is_connectable(ny.si.material->min_roughness, next.u_classify, config))
-                break;
-            ny.wo = ny.si.frame.to_local(-r2.d);
-            v.si = ny.si, v.wo = -r2.d;
-            v.u_light = next.u_light, v.u_classify = next.u_classify;
-        }
-        v.type = VertexType::Surface;
-        v.beta = beta;
-        v.delta = false;
-        o.p.v.push_back(v);
-        o.y.push_back(ny);
-        o.r.push_back(r);
-    }
-    // The offset's own densities, as its walk would have recorded them (a
-    // delta step has none, as in walk_subpath).
-    // Past the merge the densities are x's: the vertices they read are x's.
-    std::vector<Vertex>& v = o.p.v;
-    const size_t fwd_own = o.merged == kNone ? v.size() : size_t(o.merged) + 1;
-    const size_t rev_own = o.merged == kNone ? v.size() : size_t(o.merged) - 1;
-    for (size_t k = 1; k < v.size() && k < fwd_own; ++k)
-        v[k].pdf_fwd = k >= 2 && v[k - 1].delta ? 0.0 : pdf_area(scene, k >= 2 ? &v[k - 2] : nullptr, v[k - 1], v[k]);
-    for (size_t k = 0; k + 2 < v.size() && k < rev_own; ++k)
-        v[k].pdf_rev = v[k + 1].delta ? 0.0 : pdf_area(scene, &v[k + 2], v[k + 1], v[k]);
-}
+constexpr int kNone = kNoDepth;
 
 // First depth k >= 1 of a pair of connectable vertices z_k, z_{k+1} of a
 // path of n vertices (kNone if there is none).
@@ -414,46 +290,11 @@ private:
         CameraPath cam;
         Subpath light, first;  // first: an offset camera subpath of light tracing, camera and first hit
         CameraPath synth;      // the base as the shift sees it when the reconnection is the connection
-        OffsetSubpath off[kDirs];
+        CameraOffset off[kDirs];
         std::vector<uint8_t> cflag, lflag, oflag[kDirs], fx, fy, ax, ay, px, py;
         PathDensities dx, dy;
         std::vector<double> rx, ry;
     };
-
-    // The shift's step at depth k of a base whose vertex after x_k is `next`
-    // (a light-side vertex): the base's vertices 0..k are `prefix`'s, as the
-    // camera side sees them.
-    ShiftStep step_onto(const Scene& scene, Scratch& S, const Vertex* prefix, int k, const Vertex& next,
-                        const OffsetVertex& y) const {
-        CameraPath& b = S.synth;
-        b.v.assign(prefix, prefix + k + 1);
-        Vertex& xk = b.v[k];
-        if (!xk.scattered()) {
-            // The camera walk stopped at x_k: only a reconnection reads this step, and it needs positions only.
-            xk.bs = BsdfSample{};
-            xk.bs.pdf = 1.f;
-        }
-        Vertex& nx = b.v.emplace_back(next);
-        if (nx.type == VertexType::Light) nx.si.material = emitter_material(scene, next);
-        nx.type = VertexType::Surface;
-        b.nee.resize(b.v.size());
-        return shift_->step(ShiftStepInput{scene, config_, b, size_t(k), y, true});
-    }
-
-    // Light vertex q seen from the camera side: its incoming direction is the
-    // one towards the camera-side vertex `towards`, its sampled direction the
-    // one towards `away` (only a reconnection at it reads positions alone).
-    static Vertex camera_side(const Vertex& q, const Vertex& towards, const Vertex& away) {
-        Vertex v = q;
-        v.type = VertexType::Surface;
-        v.wo = glm::normalize(towards.si.p - q.si.p);
-        v.bs = BsdfSample{};
-        v.bs.wi = q.si.frame.to_local(glm::normalize(away.si.p - q.si.p));
-        v.bs.pdf = 1.f;
-        v.bs.lobe = v.bs.wi.z * q.si.frame.to_local(v.wo).z > 0.f ? kReflection : kTransmission;
-        v.rr_survival = 1.f;
-        return v;
-    }
 
     void estimate(const Scene& scene, SampleJob& job, float* o, uint64_t& rays) const {
         thread_local Scratch S;
@@ -477,7 +318,7 @@ private:
             const int nx = job.x + kDx[d], ny = job.y + kDy[d];
             inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
             S.off[d].p.v.clear();
-            if (inside[d]) walk_offset(scene, *shift_, config_, cam, Vec2(float(kDx[d]), float(kDy[d])), S.off[d], rays);
+            if (inside[d]) shift_camera_subpath(scene, *shift_, config_, cam, Vec2(float(kDx[d]), float(kDy[d])), S.off[d], rays);
             S.oflag[d].resize(size_t(S.off[d].size()));
             for (int k = 0; k < S.off[d].size(); ++k) S.oflag[d][k] = k == 0 || connectable(S.off[d].p.v[k]);
         }
@@ -584,7 +425,7 @@ private:
             for (int j = 0; j < s; ++j) fy[n - 1 - j] = fx[n - 1 - j];
             fy[0] = 1;
             if (t >= 2) {
-                const OffsetSubpath& off = S.off[d];
+                const CameraOffset& off = S.off[d];
                 if (off.size() >= t) {
                     for (int i = 0; i < t; ++i) fy[i] = S.oflag[d][i];
                     fy[n - 1] = 1;
@@ -593,7 +434,7 @@ private:
                         b = off.b;
                         if (off.blocked) blocked_y = b;
                     } else if (s >= 1) {
-                        const ShiftStep st = step_onto(scene, S, cam.v.data(), t - 1, *lend, off.y[t - 1]);
+                        const ShiftStep st = shift_onto(scene, *shift_, config_, cam.v.data(), t - 1, *lend, off.y[t - 1], S.synth);
                         if (st.kind == ShiftStep::Kind::Reconnect) b = t - 1;
                     }
                     const int cyp = first_pair(fy.data(), n);
@@ -648,11 +489,11 @@ private:
                 rays += c1.rays;
                 if (c1.size() >= 2) {
                     const Vertex& z2 = light.v[s - 2];
-                    const Vertex prefix[2] = {cam.v[0], camera_side(light.v[s - 1], cam.v[0], z2)};
+                    const Vertex prefix[2] = {cam.v[0], camera_side_vertex(light.v[s - 1], cam.v[0], z2)};
                     OffsetVertex y1;
                     y1.si = c1.v[1].si;
                     y1.wo = y1.si.frame.to_local(c1.v[1].wo);
-                    const ShiftStep st = step_onto(scene, S, prefix, 1, z2, y1);
+                    const ShiftStep st = shift_onto(scene, *shift_, config_, prefix, 1, z2, y1, S.synth);
                     if (st.kind == ShiftStep::Kind::Reconnect) {
                         defined = true;
                         fy[1] = connectable(c1.v[1]);
