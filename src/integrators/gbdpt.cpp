@@ -331,7 +331,7 @@ private:
             o[3 * slot] += c.r, o[3 * slot + 1] += c.g, o[3 * slot + 2] += c.b;
         };
         const int s_max = std::max(light.size(), scene.has_lights() ? 1 : 0);
-        for (int t = 1; t <= cam.size(); ++t)
+        for (int t = 1; t <= int(cam.size()); ++t)
             for (int s = 0; s <= s_max; ++s) {
                 const int n = s + t;
                 if (n < 2 || (s == 1 && t == 1)) continue;
@@ -562,11 +562,11 @@ private:
         if (cam.size() < 2 || cam.v[1].infinite) return;
         float* aux = o + 3 * kAux;
         aux[6] = cam.v[1].si.t;
-        for (int k = 1; k < cam.size(); ++k) {
+        for (int k = 1; k < int(cam.size()); ++k) {
             const Vertex& v = cam.v[k];
             if (v.infinite) return;
             if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
-                k + 1 < cam.size())
+                k + 1 < int(cam.size()))
                 continue;
             const Color a = v.si.material->bsdf->albedo(v.si.uv);
             aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
