@@ -13,7 +13,7 @@ namespace gdr::cli {
 
 int check_shift(const std::vector<std::string>& args) {
     ArgReader a{args};
-    std::string scene_path, shift_name = "half-vector";
+    std::string scene_path, shift_name = "half-vector", integrator = "gpt";
     ValidateOptions opt;
     ShiftConfig cfg;
     SceneFileOptions scene_options;
@@ -21,6 +21,11 @@ int check_shift(const std::vector<std::string>& args) {
         const std::string o = a.next();
         if (o == "-h" || o == "--help") return print_usage("check-shift");
         if (o == "--shift") shift_name = a.value(o);
+        else if (o == "--integrator") {
+            integrator = a.value(o);
+            if (integrator != "gpt" && integrator != "gbdpt")
+                throw ParameterError("check-shift: --integrator must be gpt or gbdpt, got '" + integrator + "'");
+        }
         else if (o == "--paths") opt.paths = int(a.int_value(o, 1, std::numeric_limits<int>::max()));
         else if (o == "--seed") opt.seed = uint64_t(a.int_value(o, 0, std::numeric_limits<long long>::max()));
         else if (o == "--max-depth") {
@@ -42,7 +47,8 @@ int check_shift(const std::vector<std::string>& args) {
     const SceneFile sf = load_scene_file(scene_path, scene_options);
     for (const std::string& w : sf.warnings) say("warning: {}\n", w);
     const auto shift = shift_registry().create(shift_name, Params("--shift"));
-    const ShiftReport rep = validate_shift(*sf.scene, *shift, cfg, opt);
+    const ShiftReport rep = integrator == "gbdpt" ? validate_bidirectional_shift(*sf.scene, *shift, cfg, opt)
+                                                  : validate_shift(*sf.scene, *shift, cfg, opt);
     fmt::print("{}: {}", scene_path, rep.summary());
     return rep.passed ? 0 : 1;
 }

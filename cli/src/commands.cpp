@@ -141,10 +141,11 @@ const CommandHelp kCommands[] = {
      "                    factor in both dimensions are downsampled automatically\n"
      "A grey layer is broadcast to compare with an RGB one, and alpha is dropped to compare with RGB."},
     {"check-shift",
-     "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--paths N] [--seed S] [--max-depth D] [--threshold T]\n"
-     "                [--probabilistic] [-D name=value]... [--lenient]",
+     "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--integrator gpt|gbdpt] [--paths N] [--seed S]\n"
+     "                [--max-depth D] [--threshold T] [--probabilistic] [-D name=value]... [--lenient]",
      "Samples base paths, shifts each to its right-hand neighbour, and checks the failure rate,\n"
      "reversibility and each step's analytic against a finite-difference Jacobian. Ends with PASS or FAIL.\n"
+     "  --integrator gbdpt  base paths that join a camera and a light subpath, shifted as gbdpt does\n"
      "  -D name=value   a Mitsuba XML scene's $parameter (overrides its <default>)\n"
      "  --lenient       a Mitsuba XML scene's unsupported elements become warnings and are skipped"},
     {"list", "gdr list", "Lists the registered integrators with their parameters, shift mappings and reconstructors."},

@@ -1,7 +1,9 @@
 // A shift mapping written outside gdr: "late-reconnect" replays the base's
 // random numbers at the first vertex and reconnects at the first connectable
 // vertex after it. It is built from gdr's public shift building blocks,
-// registered by name, validated, and used by the unmodified `gpt` integrator.
+// registered by name, validated, and used by the unmodified `gpt` and
+// `gbdpt` integrators (gbdpt applies it to the camera side of bidirectional
+// paths and validates it there too).
 #include <cstdio>
 #include <string>
 
@@ -43,6 +45,8 @@ int main(int argc, char** argv) {
         const auto shift = gdr::shift_registry().create("late-reconnect", gdr::Params());
         const gdr::ShiftReport report = gdr::validate_shift(*sf.scene, *shift, gdr::ShiftConfig{}, vopt);
         std::printf("%s", report.summary().c_str());
+        const gdr::ShiftReport bidir = gdr::validate_bidirectional_shift(*sf.scene, *shift, gdr::ShiftConfig{}, vopt);
+        std::printf("%s", bidir.summary().c_str());
 
         gdr::Params p;
         p.set("shift", std::string("late-reconnect"));
@@ -53,7 +57,14 @@ int main(int argc, char** argv) {
         const gdr::RenderStats rs = gpt->render(*sf.scene, st, fb);
         gdr::write_exr(argv[2], fb);
         std::printf("rendered %lld spp with gpt shift=late-reconnect in %.2f s -> %s\n", rs.spp, rs.seconds, argv[2]);
-        return report.passed ? 0 : 1;
+        // The same shift in gradient-domain bidirectional path tracing.
+        auto gbdpt = gdr::integrator_registry().create("gbdpt", p);
+        gdr::FrameBuffer fb2;
+        const gdr::RenderStats rs2 = gbdpt->render(*sf.scene, st, fb2);
+        const std::string out2 = std::string(argv[2]) + ".gbdpt.exr";
+        gdr::write_exr(out2, fb2);
+        std::printf("rendered %lld spp with gbdpt shift=late-reconnect in %.2f s -> %s\n", rs2.spp, rs2.seconds, out2.c_str());
+        return report.passed && bidir.passed ? 0 : 1;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "custom_shift: %s\n", e.what());
         return 1;

@@ -6,7 +6,7 @@ namespace gdr {
 void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& x,
                           const Vec2& delta, CameraOffset& o, uint64_t& rays) {
     o.p.mode = TransportMode::Radiance;
-    o.p.v.clear(), o.y.clear(), o.r.clear(), o.jacobian.clear();
+    o.p.v.clear(), o.y.clear(), o.r.clear(), o.steps.clear();
     o.b = kNoDepth, o.blocked = false, o.merged = kNoDepth;
     if (x.size() < 2) return;
     const Ray ray = scene.camera().generate_ray(x.film + delta);
@@ -17,15 +17,16 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
     o.p.v.push_back(x.v[0]);
     o.y.emplace_back();
     o.r.push_back(1.0);
-    o.jacobian.push_back(1.0);
+    o.steps.emplace_back();
     {
         Vertex& v = o.p.v.emplace_back();
         v.si = y1.si, v.wo = -ray.d, v.beta = x.v[1].beta;
         v.u_light = x.v[1].u_light, v.u_classify = x.v[1].u_classify;
+        v.u_lobe = x.v[1].u_lobe, v.u_dir = x.v[1].u_dir;
     }
     o.y.push_back(y1);
     o.r.push_back(1.0);
-    o.jacobian.push_back(0.0);
+    o.steps.emplace_back();
     for (size_t k = 1; k + 1 < x.size(); ++k) {
         const Vertex& xk = x.v[k];
         if (!xk.scattered()) break;
@@ -53,7 +54,7 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
         Color beta = o.p.v[k].beta * s.f * float(abs_cos_theta(s.wi) * s.jacobian * inv_pdf / xk.rr_survival);
         const double r = o.r[k] * double(s.pdf) * s.jacobian * inv_pdf;
         o.p.v[k].delta = s.delta;
-        o.jacobian[k] = s.jacobian;
+        o.steps[k] = s;
         if (yk.on_base) {
             // Same vertex, same outgoing direction: y is x from x_{k+1} on.
             o.merged = int(k) + 1;
@@ -63,7 +64,7 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
                 o.p.v.push_back(v);
                 o.y.emplace_back();
                 o.r.push_back(r);
-                o.jacobian.push_back(1.0);
+                o.steps.emplace_back();
                 if (!x.v[j].scattered()) break;
                 beta *= scatter_weight(x.v[j]);
             }
@@ -91,6 +92,7 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
             ny.wo = ny.si.frame.to_local(-r2.d);
             v.si = ny.si, v.wo = -r2.d;
             v.u_light = next.u_light, v.u_classify = next.u_classify;
+            v.u_lobe = next.u_lobe, v.u_dir = next.u_dir;  // the offset replays x's numbers at its depth
         }
         v.type = VertexType::Surface;
         v.beta = beta;
@@ -98,7 +100,7 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
         o.p.v.push_back(v);
         o.y.push_back(ny);
         o.r.push_back(r);
-        o.jacobian.push_back(0.0);
+        o.steps.emplace_back();
     }
     // The offset's own densities, as its walk would have recorded them (a
     // delta step has none, as in walk_subpath).

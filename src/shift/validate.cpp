@@ -223,7 +223,10 @@ std::string ShiftReport::summary() const {
     os.precision(4);
     os << "shift " << shift << ": " << base_paths << " base paths of " << sampled << " sampled";
     // A camera path that leaves the scene or ends at its first vertex has nothing to shift.
-    if (sampled > base_paths) os << " (" << sampled - base_paths << " left the scene or ended at their first vertex)";
+    if (sampled > base_paths && bidirectional)
+        os << " (" << sampled - base_paths << " had no connection between connectable vertices to try)";
+    else if (sampled > base_paths)
+        os << " (" << sampled - base_paths << " left the scene or ended at their first vertex)";
     os << ", failure rate " << 100.0 * failure_rate() << "%\n"
        << "  reversibility: " << reverse_ok << " / " << reverse_checked << " (" << pct(reverse_ok, reverse_checked)
        << "%) returned to the base path; " << reverse_failed_shift << " inverse shifts failed\n"

@@ -25,7 +25,7 @@ struct CameraOffset {
     Subpath p;                    ///< y_0 .. y_m.
     std::vector<OffsetVertex> y;  ///< y_k as shift steps read it (y[0] unused).
     std::vector<double> r;        ///< r[k]: |J| p(y)/p(x) of the camera walk up to y_k (1 at y_1), unitless.
-    std::vector<double> jacobian; ///< jacobian[k]: |J| of the step that left y_k (solid angle over solid angle).
+    std::vector<ShiftStep> steps; ///< steps[k]: how y_k was left (kind Fail at the last vertex).
     int b = kNoDepth;             ///< Depth of the reconnection y_b -> x_{b+1}.
     /// That reconnection's segment is blocked: the path y exists (a strategy
     /// connecting across the segment samples it) and f(y) = 0.

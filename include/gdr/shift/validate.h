@@ -36,6 +36,8 @@ struct ShiftReport {
     double jacobian_median_error = 0.0;   ///< Median relative error of the analytic Jacobians.
     double jacobian_worst_error = 0.0;    ///< Largest relative error seen.
     bool passed = false;               ///< All checks passed at the required fraction.
+    /// Base paths join a camera and a light subpath (validate_bidirectional_shift).
+    bool bidirectional = false;
 
     /// Share of base paths whose shift failed somewhere (in [0,1]).
     double failure_rate() const { return base_paths ? 1.0 - double(complete) / double(base_paths) : 0.0; }
@@ -46,5 +48,15 @@ struct ShiftReport {
 /// Validates `shift` on `scene` (see ShiftReport for what is measured).
 ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftConfig& config,
                            const ValidateOptions& options = {});
+
+/// Validates `shift` as gbdpt applies it (gdr/shift/bidir.h), on paths that
+/// join a camera subpath to a light subpath: each sample picks one
+/// connection strategy (light tracing included), shifts it to the right-hand
+/// neighbour, counts undefined offsets as failures, shifts the offset back,
+/// and compares the Jacobians the bidirectional shift adds (a reconnection
+/// onto a light-side vertex, light tracing's film shift in area measure)
+/// with finite differences. base_paths counts the connection paths tried.
+ShiftReport validate_bidirectional_shift(const Scene& scene, const Shift& shift, const ShiftConfig& config,
+                                         const ValidateOptions& options = {});
 
 }  // namespace gdr
