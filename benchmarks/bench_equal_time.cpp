@@ -1,7 +1,7 @@
 // Equal-time comparison of PT, G-PT + L1, G-PT + L2, G-PT + variance-weighted
 // Poisson (L2 and L1 forms), BDPT and G-BDPT + L1 / L2 on real scenes.
 //
-// For each scene: a cached high-spp PT reference, then for every time budget
+// For each scene: a cached high-spp reference (PT; BDPT on veach-bidir), then for every time budget
 // of a geometric series one PT, one G-PT and one BDPT render (interleaved, so
 // load changes on a shared machine hit all alike). G-PT's time is render +
 // reconstruction wall time: its render budget is shortened by the L1 solve
@@ -69,6 +69,10 @@ double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock:
 struct SceneSpec {
     std::string name, path;
     long long ref_spp;  // full-mode reference samples per pixel: fewer where PT is slow (see README note)
+    // The reference's integrator: bdpt where PT's own reference noise would
+    // be as large as the errors measured (veach-bidir's lamp: a 1024-spp PT
+    // reference there has an estimated relMSE of 0.026 of its own).
+    std::string ref_integrator = "pt";
 };
 
 const std::vector<SceneSpec> kAllScenes = {
@@ -76,7 +80,7 @@ const std::vector<SceneSpec> kAllScenes = {
     {"cbox-glossy", GDR_SOURCE_DIR "/scenes/cornell-box/glossy.json", 2048},
     {"cbox-sphere", GDR_SOURCE_DIR "/scenes/cornell-box/sphere.json", 2048},
     {"veach-mis", GDR_SOURCE_DIR "/scenes/veach-mis/scene.json", 2048},
-    {"veach-bidir", GDR_SOURCE_DIR "/scenes/veach-bidir/scene.json", 1024},
+    {"veach-bidir", GDR_SOURCE_DIR "/scenes/veach-bidir/scene.json", 1024, "bdpt"},
     {"bathroom", GDR_SOURCE_DIR "/scenes/bathroom/scene.json", 512},
 };
 
@@ -241,8 +245,9 @@ double reference_self_relmse(const FrameBuffer& ref, double eps) {
 FrameBuffer get_reference(const Options& o, const SceneSpec& spec, const Scene& scene, std::string& file_out) {
     const long long ref_spp = o.ref_spp > 0 ? o.ref_spp : spec.ref_spp;
     char name[256];
-    std::snprintf(name, sizeof name, "%s-%dx%d-spp%lld-%016llx.exr", spec.name.c_str(), scene.camera().width(),
-                  scene.camera().height(), ref_spp, (unsigned long long)scene_key(spec.path, scene));
+    const std::string tag = spec.ref_integrator == "pt" ? "" : "-" + spec.ref_integrator;
+    std::snprintf(name, sizeof name, "%s-%dx%d-spp%lld%s-%016llx.exr", spec.name.c_str(), scene.camera().width(),
+                  scene.camera().height(), ref_spp, tag.c_str(), (unsigned long long)scene_key(spec.path, scene));
     const std::string file = (fs::path(o.cache) / name).string();
     file_out = file;
     if (!o.refresh && fs::exists(file)) {
@@ -256,9 +261,9 @@ FrameBuffer get_reference(const Options& o, const SceneSpec& spec, const Scene& 
             std::printf("  cached reference unreadable (%s); re-rendering\n", e.what());
         }
     }
-    std::printf("  rendering reference %s (PT, %lld spp) ...\n", file.c_str(), ref_spp);
+    std::printf("  rendering reference %s (%s, %lld spp) ...\n", file.c_str(), spec.ref_integrator.c_str(), ref_spp);
     std::fflush(stdout);
-    auto pt = integrator_registry().create("pt", Params());
+    auto pt = integrator_registry().create(spec.ref_integrator, Params());
     RenderSettings st;
     st.spp = ref_spp;
     st.seed = 0x5eed5eedull;  // never one of the benchmark's seeds
@@ -276,6 +281,7 @@ FrameBuffer get_reference(const Options& o, const SceneSpec& spec, const Scene& 
     fb.metadata()["spp"] = std::to_string(rs.spp);
     fb.metadata()["scene"] = spec.path;
     fb.metadata()["reference_seconds"] = std::to_string(rs.seconds);
+    fb.metadata()["reference_integrator"] = spec.ref_integrator;
     fs::create_directories(o.cache);
     // Only the layers the benchmark reads: keeps the cache small.
     FrameBuffer keep(fb.width(), fb.height());
@@ -466,8 +472,8 @@ int main(int argc, char** argv) try {
     std::printf("machine: %s\n", gdr::bench::machine_description().c_str());
     std::printf("equal-time benchmark: width %d, budgets", o.width);
     for (double b : o.budgets) std::printf(" %g", b);
-    if (o.ref_spp > 0) std::printf(" s, reference PT %lld spp cached in %s\n", o.ref_spp, o.cache.c_str());
-    else std::printf(" s, reference PT (per-scene spp) cached in %s\n", o.cache.c_str());
+    if (o.ref_spp > 0) std::printf(" s, reference PT (BDPT on veach-bidir) %lld spp cached in %s\n", o.ref_spp, o.cache.c_str());
+    else std::printf(" s, reference PT (BDPT on veach-bidir; per-scene spp) cached in %s\n", o.cache.c_str());
     std::printf("error: relMSE, thesis convention (per channel, eps = 0.01)\n");
     const Params gpt_params = make_gpt_params(o), l1_params = make_l1_params(o, gpt_params),
                  l2_params = make_l2_params(gpt_params);

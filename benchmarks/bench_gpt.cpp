@@ -1,4 +1,5 @@
-// G-PT cost and gradient noise against PT, measured in one run.
+// G-PT cost and gradient noise against PT, and G-BDPT's cost against BDPT,
+// measured in one run.
 //  1. Cost of one G-PT sample relative to one PT sample (medians of interleaved
 //     runs), in wall-clock time and in process CPU time (user + system, all
 //     threads): on a shared virtual machine other guests inflate the first.
@@ -12,6 +13,7 @@
 //  2. Variance of the sampled gradients dx against the variance of finite
 //     differences of the PT image, both at equal time (per-sample variances
 //     scaled by the samples each method affords in the same time).
+//  3. The same cost figures for a G-BDPT sample relative to a BDPT sample.
 // Usage: bench_gpt [SCENE.json] [repeats]
 #include <algorithm>
 #include <cstdio>
@@ -159,5 +161,26 @@ int run(const std::string& path, int repeats) {
                 sum_g / ((W - 1.0) * H), sum_fd / ((W - 1.0) * H));
     std::printf("  ratio FD / gradients: %.2fx less variance (mean); median per-pixel ratio gradients/FD %.3g\n",
                 sum_fd / sum_g, ratios.empty() ? 0.0 : median(ratios));
+
+    // G-BDPT against BDPT: the same interleaved short and long renders (fewer
+    // samples: both cost several PT samples each).
+    auto bdpt = integrator_registry().create("bdpt", Params());
+    auto gbdpt = integrator_registry().create("gbdpt", gp);
+    std::vector<double> g_cpu, g_marginal, g_sampling;
+    for (int r = 0; r < repeats; ++r) {
+        const Timed pa = timed(*bdpt, 2, uint64_t(r), scratch), ga = timed(*gbdpt, 1, uint64_t(r), scratch);
+        const Timed ta = timed(*bdpt, 8, uint64_t(r), scratch), tb = timed(*gbdpt, 4, uint64_t(r), scratch);
+        g_cpu.push_back((tb.cpu / double(tb.stats.samples)) / (ta.cpu / double(ta.stats.samples)));
+        g_marginal.push_back(((tb.cpu - ga.cpu) / double(tb.stats.samples - ga.stats.samples)) /
+                             ((ta.cpu - pa.cpu) / double(ta.stats.samples - pa.stats.samples)));
+        g_sampling.push_back(tb.sampling_cpu_per_sample / ta.sampling_cpu_per_sample);
+        std::printf("run %d: bdpt %.3f M samples/s, gbdpt %.3f M samples/s, CPU time per sample gbdpt/bdpt %.2f, "
+                    "marginal %.2f, sampling %.2f\n",
+                    r, double(ta.stats.samples) / ta.stats.seconds * 1e-6, double(tb.stats.samples) / tb.stats.seconds * 1e-6,
+                    g_cpu.back(), g_marginal.back(), g_sampling.back());
+    }
+    std::printf("cost of a G-BDPT sample / a BDPT sample: %.2fx CPU time whole renders, %.2fx marginal, %.2fx while "
+                "sampling (medians of %d interleaved runs)\n",
+                median(g_cpu), median(g_marginal), median(g_sampling), repeats);
     return 0;
 }
