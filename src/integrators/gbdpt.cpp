@@ -372,9 +372,9 @@ private:
         for (int i = 0; i < t; ++i) fx[i] = S.cflag[i];
         for (int j = 0; j < s; ++j) fx[n - 1 - j] = j == 0 ? 1 : S.lflag[j];
         fx[0] = 1, fx[n - 1] = 1;
-        connection_densities(scene, light, cam, {s, t}, lend, S.dx);
-        if (!(one_ || kept(fx.data(), S.dx, t))) return;
-        if (one_ && !strategy_possible(S.dx, t)) return;
+        // Whether t itself is kept needs no densities: its own connecting
+        // vertices are never delta ones (connection_densities).
+        if (!one_ && t < n && !(fx[t - 1] && fx[t] && (t != 1 || (n >= 3 && fx[2])))) return;
 
         // The base's unweighted value.
         Vec2 film_x(0.f);
@@ -388,6 +388,8 @@ private:
             put(kDirect, vx);  // directly visible emitters stay out of the gradients
             return;
         }
+        connection_densities(scene, light, cam, {s, t}, lend, S.dx);
+        if (!strategy_possible(S.dx, t)) return;
         strategy_density_ratios(S.dx, t, S.rx);
         std::vector<uint8_t>& ax = S.ax;
         ax.assign(size_t(n) + 1, 0);
@@ -451,6 +453,8 @@ private:
                         occluded_y = cx.occluded;
                         if (is_black(vy) && !occluded_y) defined = false;
                         if (blocked_y >= 0) vy = Color(0.f);
+                    }
+                    if (defined && merged) {
                         // Only the densities of y's own vertices and of the two after them differ.
                         S.dy = S.dx;
                         for (int i = 0; i <= off.merged; ++i) S.dy.fwd[i] = off.p.v[i].pdf_fwd;
@@ -476,9 +480,11 @@ private:
                         // connect() tests the connection's segment only: a blocked
                         // reconnection before it zeroes y as well.
                         if (blocked_y >= 0) vy = Color(0.f);
-                        connection_densities(scene, light, off.p, {s, t}, lend, S.dy);
-                        strategy_density_ratios(S.dy, t, S.ry);
-                        R = off.r[t - 1];
+                        if (defined) {
+                            connection_densities(scene, light, off.p, {s, t}, lend, S.dy);
+                            strategy_density_ratios(S.dy, t, S.ry);
+                            R = off.r[t - 1];
+                        }
                     }
                 }
             } else {
@@ -494,20 +500,17 @@ private:
                     y1.si = c1.v[1].si;
                     y1.wo = y1.si.frame.to_local(c1.v[1].wo);
                     const ShiftStep st = shift_onto(scene, *shift_, config_, prefix, 1, z2, y1, S.synth);
-                    if (st.kind == ShiftStep::Kind::Reconnect) {
+                    // f(y) = 0: no pair (see the t >= 2 case).
+                    const Color v = st.kind == ShiftStep::Kind::Reconnect ? join(z2, c1.v[1]) : Color(0.f);
+                    if (!is_black(v)) {
                         defined = true;
                         fy[1] = connectable(c1.v[1]);
                         for (int i = 2; i < n; ++i) fy[i] = fx[i];
+                        ++rays;
+                        if (segment_visible(scene, z2, c1.v[1])) vy = v;
+                        else occluded_y = true;
                         // (s - 1, 2) on the offset's camera subpath is the same path y.
                         connection_densities(scene, light, c1, {s - 1, 2}, &light.v[s - 2], S.dy);
-                        const Color v = join(z2, c1.v[1]);
-                        if (!is_black(v)) {
-                            ++rays;
-                            if (segment_visible(scene, z2, c1.v[1])) vy = v;
-                            else occluded_y = true;
-                        } else {
-                            defined = false;  // f(y) = 0: no pair (see the t >= 2 case)
-                        }
                         // f(y)|J|/p(x): p_{s-1,2}(y)|J| / p_{s,1}(x) = fwd_x[1] / rev_x[1].
                         vy *= float(S.dx.fwd[1] / S.dx.rev[1]);
                         R = (S.dx.fwd[1] / S.dy.fwd[1]) * (S.dy.rev[1] / S.dx.rev[1]);
