@@ -55,6 +55,8 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         throw InputError(origin + ": a mesh's normals, if any, must match its positions one to one" + sizes());
     if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
         throw InputError(origin + ": a mesh's uvs, if any, must match its positions one to one" + sizes());
+    if (!mesh.object_ids.empty() && mesh.object_ids.size() != mesh.material_ids.size())
+        throw InputError(origin + ": a mesh's object ids, if any, must match its material ids one to one" + sizes());
     // Validate and compact: non-finite vertices are an error, zero-area triangles are dropped.
     TriangleMesh m;
     const bool has_n = !mesh.normals.empty(), has_uv = !mesh.uvs.empty();
@@ -82,6 +84,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
             if (has_uv) m.uvs.push_back(is_finite(Vec3(mesh.uvs[3 * t + k], 0.f)) ? mesh.uvs[3 * t + k] : Vec2(0.f));
         }
         m.material_ids.push_back(mesh.material_ids[t]);
+        if (!mesh.object_ids.empty()) m.object_ids.push_back(mesh.object_ids[t]);
     }
     if (m.size() == 0) throw InputError(origin + ": the scene has no (non-degenerate) triangles");
     mesh_ = std::move(m);

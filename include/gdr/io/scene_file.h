@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "gdr/core/params.h"
+#include "gdr/scene/animated_scene.h"
 #include "gdr/scene/scene.h"
 
 namespace gdr {
@@ -57,6 +58,11 @@ struct SceneFile {
     /// Approximations made and elements skipped while loading (Mitsuba XML),
     /// one line each, naming the file and line; empty for JSON scene files.
     std::vector<std::string> warnings;
+    /// The scene at every frame, for a file with an `animation` block; null
+    /// for a still scene. `scene` is then its frame `frame`.
+    std::shared_ptr<AnimatedScene> animation;
+    /// The frame `scene` shows (animation->range().first after loading); 0 for a still scene.
+    int frame = 0;
 };
 
 /// Options of load_scene_file that only Mitsuba XML scenes take.
@@ -91,6 +97,12 @@ std::string scene_content_hash(const std::string& scene_path, const std::vector<
 /// Throws ParameterError for a negative side, both sides 0, or a resolution the
 /// camera rejects.
 void set_resolution(SceneFile& sf, int width, int height);
+
+/// Replaces sf.scene by the animation's frame `frame` (time t = frame, an
+/// instant: no motion blur), keeping the camera's resolution and field of
+/// view. Throws InputError for a still scene, ParameterError for a frame
+/// outside the animation's range.
+void set_frame(SceneFile& sf, int frame);
 
 /// Rebuilds the scene's camera with a full field of view of `fov_deg` degrees,
 /// in (0, 180), along `axis`: 'x' horizontal, 'y' vertical, 0 the camera's own

@@ -37,6 +37,9 @@ struct TriangleMesh {
     std::vector<Vec3> normals;          ///< 3 per triangle, or empty (flat shading).
     std::vector<Vec2> uvs;              ///< 3 per triangle, or empty.
     std::vector<uint32_t> material_ids; ///< 1 per triangle, index into Scene materials.
+    /// 1 per triangle, or empty (every triangle object 0): the scene-file
+    /// mesh entry it came from, which temporal methods match across frames.
+    std::vector<uint32_t> object_ids;
     /// Number of triangles.
     size_t size() const { return material_ids.size(); }
 };
@@ -220,6 +223,8 @@ public:
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
     const TriangleMesh& mesh() const { return mesh_; }                    ///< The geometry.
+    /// Object id (scene-file mesh entry index) of triangle `prim`, e.g. of a hit's SurfaceInteraction::prim.
+    uint32_t object_id(uint32_t prim) const { return mesh_.object_ids.empty() ? 0u : mesh_.object_ids[prim]; }
     const SceneStats& stats() const { return stats_; }                    ///< Load counters.
     /// Radius of a sphere around the scene's bounds centre that holds it (scene units).
     float bounding_radius() const { return radius_; }
