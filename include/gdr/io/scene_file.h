@@ -10,8 +10,16 @@
 //                 "transform": {"scale": 1, "rotate": [0,1,0,90], "translate": [0,0,0]}}],
 //        (transform may instead be {"matrix": [16 numbers, row-major]})
 //     "materials": {"sphere": {"type": "roughconductor", "ks": [0.9,0.9,0.9], "alpha": 0.1}},
-//     "render": {"integrator": "pt", "spp": 64, "seed": 0, "params": {"max_depth": 16}}
+//     "render": {"integrator": "pt", "spp": 64, "seed": 0, "params": {"max_depth": 16}},
+//     "animation": {"first": 0, "last": 47, "fps": 24}
 //   }
+//
+// Animation (gdr/scene/animation.h): with an "animation" block, a mesh entry
+// may hold "keys": [{"frame": 0, "translate": [x,y,z], "rotate": [ax,ay,az,deg]
+// or "quaternion": [w,x,y,z], "scale": s or [sx,sy,sz]}, ...], applied after
+// its "transform", and the camera "keys": [{"frame": 0, "position", "target",
+// "up"} or {"frame": 0, "matrix": [16 numbers, row-major camera-to-world]}].
+// Frames strictly increase and may be fractional.
 #pragma once
 
 #include <cstddef>
