@@ -106,6 +106,10 @@ TEST_CASE("animation: keys are hit exactly and held outside the track", "[animat
         CHECK(t.matrix_at(f) == want.matrix());
     }
     CHECK(TransformTrack{}.matrix_at(2.0) == Mat4(1.f));
+    // Scale, then rotate, then translate, as a scene file's "transform".
+    const Vec3 p(0.3f, -1.2f, 2.f);
+    const Vec3 want = a.translate + a.rotate * (a.scale * p);
+    CHECK(glm::length(Vec3(t.matrix_at(1.5) * Vec4(p, 1.f)) - want) < 1e-5f);
 }
 
 TEST_CASE("animation: translation and scale are linear, rotation is slerp", "[animation]") {
