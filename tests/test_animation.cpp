@@ -157,7 +157,7 @@ TEST_CASE("animation: the camera track interpolates look-at keys", "[animation]"
 TEST_CASE("animation: a scene that does not move renders its frames as the still scene", "[animation]") {
     const test::OutDir dir("anim-still");
     const std::string obj = kCornell + "CornellBox-Original.obj";
-    const std::string camera = R"("camera": {"position": [0, 1, 3.5], "target": [0, 1, 0], "width": 24, "height": 20})";
+    const std::string camera = R"("camera": {"position": [0.3, 1.1, 3.4], "target": [0, 0.9, 0], "width": 24, "height": 20})";
     write_text(dir("still.json"), "{" + camera + R"(, "meshes": [{"file": ")" + obj + R"("}]})");
     // No keys at all, and keys that leave the mesh where it is.
     write_text(dir("anim.json"), "{" + camera + R"(, "animation": {"first": 0, "last": 3}, "meshes": [{"file": ")" +
