@@ -341,6 +341,8 @@ TEST_CASE("animation: bad keys are errors naming the file and the key", "[animat
     CHECK_THAT(camera_keys(R"([{"frame": 0, "position": [0, 0, 4], "target": [0, 0, 0]}, {"frame": -1,
         "position": [0, 0, 4], "target": [0, 0, 0]}])"), Contains("camera.keys[1].frame"));
     CHECK(camera_keys(R"([{"frame": 0, "matrix": [1,0,0,0, 0,1,0,0, 0,0,1,4, 0,0,0,1]}])").empty());
+    CHECK_THAT(error_for(R"("camera": {"position": [0, 0, 4], "keys": [{"frame": 0, "position": [0, 0, 4],
+        "target": [0, 0, 0]}]}, )" + anim + R"("meshes": ["q.obj"])"), Contains("'camera.position' is ignored"));
     // A frame outside the range.
     write_text(dir("ok.json"), "{" + cam + anim + R"("meshes": ["q.obj"]})");
     SceneFile sf = load_scene_file(dir("ok.json"));

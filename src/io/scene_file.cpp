@@ -709,6 +709,11 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     json camera_json = j["camera"];
     CameraTrack camera_track;
     if (camera_json.is_object() && camera_json.contains("keys")) {
+        // The keys set the pose; a pose beside them would be silently ignored.
+        for (const char* k : {"position", "target", "up"})
+            if (camera_json.contains(k))
+                fail(path, std::string("'camera.") + k + "' is ignored when 'camera.keys' give the pose; remove it or "
+                           "put it into the keys");
         camera_track = parse_camera_keys(path, camera_json["keys"]);
         camera_json.erase("keys");
     }
