@@ -98,6 +98,19 @@ bool track_point(const AnimatedScene& anim, int32_t object, const Vec3& p, doubl
     return to.project(Vec3(glm::dvec3(q) / q.w), film);
 }
 
+namespace {
+
+// True if nothing that moves the point seen through a pixel changes between
+// the two times: the camera and the point's object stand still. Its motion
+// is then exactly zero, which the rounding of a reprojection would blur.
+bool stands_still(const AnimatedScene& anim, int32_t object, double t_from, double t_to) {
+    const CameraDesc a = anim.camera_at(t_from).desc(), b = anim.camera_at(t_to).desc();
+    if (a.position != b.position || a.target != b.target || a.up != b.up) return false;
+    return object < 0 || anim.object_transform(uint32_t(object), t_from) == anim.object_transform(uint32_t(object), t_to);
+}
+
+}  // namespace
+
 PixelMotion pixel_motion(const AnimatedScene& anim, const Scene& scene, int frame, int x, int y) {
     const Vec2 centre(float(x) + 0.5f, float(y) + 0.5f);
     const Ray ray = scene.camera().generate_ray(centre);
@@ -111,8 +124,10 @@ PixelMotion pixel_motion(const AnimatedScene& anim, const Scene& scene, int fram
         p = ray.o + ray.d;  // a direction: track_point takes it relative to the eye
     }
     Vec2 f;
-    if (track_point(anim, m.object, p, frame, frame + 1.0, f)) m.fwd = f - centre, m.fwd_valid = true;
-    if (track_point(anim, m.object, p, frame, frame - 1.0, f)) m.bwd = f - centre, m.bwd_valid = true;
+    if (stands_still(anim, m.object, frame, frame + 1.0)) m.fwd_valid = true;
+    else if (track_point(anim, m.object, p, frame, frame + 1.0, f)) m.fwd = f - centre, m.fwd_valid = true;
+    if (stands_still(anim, m.object, frame, frame - 1.0)) m.bwd_valid = true;
+    else if (track_point(anim, m.object, p, frame, frame - 1.0, f)) m.bwd = f - centre, m.bwd_valid = true;
     // A point far behind the eye can project to an overflowing film position.
     if (!is_finite(Vec3(m.fwd, 0.f))) m.fwd = Vec2(0.f), m.fwd_valid = false;
     if (!is_finite(Vec3(m.bwd, 0.f))) m.bwd = Vec2(0.f), m.bwd_valid = false;

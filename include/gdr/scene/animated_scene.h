@@ -90,7 +90,8 @@ struct PixelMotion {
 bool track_point(const AnimatedScene& anim, int32_t object, const Vec3& p, double t_from, double t_to, Vec2& film);
 
 /// What the ray through the centre of pixel (x, y) of `scene` (anim's scene
-/// at frame `frame`) sees, with its motion to frames frame + 1 and frame - 1.
+/// at frame `frame`) sees, with its motion to frames frame + 1 and frame - 1:
+/// exactly zero where neither the camera nor the point's object moves.
 PixelMotion pixel_motion(const AnimatedScene& anim, const Scene& scene, int frame, int x, int y);
 
 /// Per-pixel motion of a frame: the layers a render of an animation holds.
