@@ -401,6 +401,8 @@ TEST_CASE("cli: frames rendered in any order or in separate runs are the same fi
     CHECK_THAT(test::error_of({"render", anim, "--frames", "3:4", "--resume", dir("a.%04d.exr"), "-o", dir("a.%04d.exr")}),
                Contains("a.0003.exr"));
     CHECK_THAT(test::error_of({"render", anim, "--frame", "48", "-o", dir("x.exr")}), Contains("frame 48"));
+    CHECK_THAT(test::error_of({"submit", anim, "--parts", "2", "--dry-run", "-o", dir("s.exr")}),
+               Contains("is an animation"));
     CHECK_THAT(test::error_of({"render", GDR_SOURCE_DIR "/scenes/cornell-box/scene.json", "--frame", "0", "-o",
                                dir("x.exr")}),
                Contains("animation"));
