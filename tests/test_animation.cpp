@@ -490,6 +490,12 @@ TEST_CASE("animation: the bundled animations span 48 frames and move what they s
     REQUIRE(cam.animation);
     CHECK(cam.animation->range().count() == 48);
     CHECK(cam.animation->range().fps == 24.0);
+    // A resolution chosen after loading holds for every frame, from the animation itself too.
+    set_resolution(cam, 40, 30);
+    CHECK(cam.animation->scene_at(5.0)->camera().width() == 40);
+    set_frame(cam, 3);
+    CHECK(cam.scene->camera().height() == 30);
+    set_resolution(cam, 256, 256);
     CHECK_FALSE(cam.animation->moves(0));
     // The camera moves: the back wall's centre pixel has motion, the object ids are the box's.
     set_frame(cam, 10);

@@ -870,6 +870,7 @@ void set_resolution(SceneFile& sf, int width, int height) {
     if (height == 0) height = aspect_side(width, d.width, d.height);
     d.width = width, d.height = height;
     sf.scene->set_camera(Camera(d));
+    if (sf.animation) sf.animation->set_camera_optics(d);  // every later frame too
 }
 
 void set_frame(SceneFile& sf, int frame) {
@@ -894,6 +895,7 @@ void set_fov(SceneFile& sf, float fov_deg, char axis) {
     d.fov_deg = fov_deg;
     if (axis) d.fov_axis = axis;
     sf.scene->set_camera(Camera(d));  // rejects an angle outside (0, 180)
+    if (sf.animation) sf.animation->set_camera_optics(d);  // every later frame too
 }
 
 }  // namespace gdr

@@ -103,7 +103,7 @@ std::string scene_content_hash(const std::string& scene_path, const std::vector<
 /// orientation and field of view along its fov_axis. 0 for one side keeps the
 /// camera's aspect ratio (that side rounded to the nearest pixel, at least 1).
 /// Throws ParameterError for a negative side, both sides 0, or a resolution the
-/// camera rejects.
+/// camera rejects. An animation's later frames (set_frame, scene_at) get it too.
 void set_resolution(SceneFile& sf, int width, int height);
 
 /// Replaces sf.scene by the animation's frame `frame` (time t = frame, an
@@ -115,7 +115,7 @@ void set_frame(SceneFile& sf, int frame);
 /// Rebuilds the scene's camera with a full field of view of `fov_deg` degrees,
 /// in (0, 180), along `axis`: 'x' horizontal, 'y' vertical, 0 the camera's own
 /// fov_axis. The resolution is kept. Throws ParameterError for an angle or axis
-/// out of range.
+/// out of range. An animation's later frames get it too.
 void set_fov(SceneFile& sf, float fov_deg, char axis = 0);
 
 /// Loads one OBJ (+ MTL) into `mesh` and `materials`, applying a 4x4 transform;
