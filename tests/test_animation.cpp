@@ -529,3 +529,37 @@ TEST_CASE("animation: the bundled animations span 48 frames and move what they s
     CHECK(box > 10000);
     CHECK(box_moving == 0);  // the box and the camera stand still
 }
+
+TEST_CASE("animation: frames on the shared static BVH render as frames with one BVH over all", "[animation]") {
+    const test::OutDir dir("anim-shared");
+    write_text(dir("quad.obj"), quad_obj(0.f, 0.f, 0.f, 0.25f));
+    write_text(dir("scene.json"), R"({"animation": {"first": 0, "last": 4},
+      "camera": {"position": [0, 1, 3.5], "target": [0, 1, 0], "width": 24, "height": 24},
+      "meshes": [{"file": ")" + kCornell + R"(CornellBox-Original.obj"},
+                 {"file": "quad.obj", "keys": [{"frame": 0, "translate": [-0.5, 0.5, 0.3], "rotate": [0, 1, 0, 20]},
+                                              {"frame": 4, "translate": [0.5, 1.2, 0.1], "rotate": [1, 1, 0, 80]}]}]})");
+    SceneFile sf = load_scene_file(dir("scene.json"));
+    REQUIRE(sf.animation->shares_static_geometry());
+    for (const char* integrator : {"pt", "gpt"}) {
+        for (double t : {1.0, 2.5}) {
+            sf.animation->set_static_sharing(true);
+            const auto shared = sf.animation->scene_at(t);
+            sf.animation->set_static_sharing(false);
+            const auto flat = sf.animation->scene_at(t);
+            sf.animation->set_static_sharing(true);
+            auto in = integrator_registry().create(integrator, Params("test"));
+            RenderSettings st;
+            st.spp = 2, st.seed = 5;
+            FrameBuffer a, b;
+            in->render(*shared, st, a, {});
+            in->render(*flat, st, b, {});
+            INFO(integrator << " at t = " << t);
+            for (const std::string& layer : a.names()) CHECK(same_layer(a, b, layer));
+            // The moving quad is there, at its place of the frame: object 1 is hit.
+            const MotionLayers m = motion_layers(*sf.animation, *shared, int(t));
+            int quad = 0;
+            for (float id : m.object_id.values()) quad += id == 1.f;
+            CHECK(quad > 0);
+        }
+    }
+}

@@ -1,5 +1,6 @@
 #include "gdr/scene/animated_scene.h"
 
+#include <algorithm>
 #include <utility>
 
 #include "gdr/core/error.h"
@@ -21,6 +22,38 @@ AnimatedScene::AnimatedScene(std::vector<AnimatedObject> objects, std::vector<Ma
         throw InputError(origin_ + ": the animation's last frame " + std::to_string(range_.last) +
                          " comes before its first " + std::to_string(range_.first));
     (void)camera_at(range_.first);  // a degenerate camera is refused here, not at the first render
+    for (uint32_t id = 0; id < objects_.size(); ++id) {
+        const AnimatedObject& o = objects_[id];
+        const TriangleMesh& m = o.mesh;
+        if (m.normals.size() != m.positions.size() || m.uvs.size() != m.positions.size() ||
+            m.positions.size() != 3 * m.size())
+            throw InputError(origin_ + ": object " + std::to_string(id) + " (" + o.name +
+                             ") needs three corners, normals and uvs per triangle");
+        any_moves_ |= !o.track.empty();
+    }
+    if (!any_moves_) return;
+    // Static triangles first, in the objects' order, as every frame's Scene will hold them.
+    for (uint32_t id = 0; id < objects_.size(); ++id) {
+        const AnimatedObject& o = objects_[id];
+        if (!o.track.empty()) continue;
+        for (size_t t = 0; t < o.mesh.size(); ++t) {
+            const Vec3* p = &o.mesh.positions[3 * t];
+            for (int k = 0; k < 3; ++k)
+                if (!is_finite(p[k])) throw InputError(origin_ + ": object " + std::to_string(id) + " (" + o.name +
+                                                       ") has a non-finite vertex");
+            if (zero_area_triangle(p[0], p[1], p[2])) continue;  // as the Scene would drop it
+            for (int k = 0; k < 3; ++k) {
+                static_mesh_.positions.push_back(p[k]);
+                static_mesh_.normals.push_back(o.mesh.normals[3 * t + k]);
+                static_mesh_.uvs.push_back(o.mesh.uvs[3 * t + k]);
+            }
+            static_mesh_.material_ids.push_back(o.mesh.material_ids[t]);
+            static_mesh_.object_ids.push_back(id);
+        }
+    }
+    const bool cut_outs =
+        std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.opacity != nullptr; });
+    if (!cut_outs && static_mesh_.size() > 0) shared_ = std::make_shared<SharedGeometry>(static_mesh_, origin_);
 }
 
 void AnimatedScene::set_camera_optics(const CameraDesc& d) {
@@ -47,40 +80,48 @@ Mat4 AnimatedScene::object_transform(uint32_t object, double t) const {
     return objects_[object].track.matrix_at(t);
 }
 
+namespace {
+
+// Appends object `id`'s triangles to `all`, transformed by `xf` (a copy, bit
+// for bit, when it does not move).
+void append_object(TriangleMesh& all, const AnimatedObject& o, uint32_t id, double t) {
+    const TriangleMesh& m = o.mesh;
+    if (o.track.empty()) {
+        all.positions.insert(all.positions.end(), m.positions.begin(), m.positions.end());
+        all.normals.insert(all.normals.end(), m.normals.begin(), m.normals.end());
+        all.uvs.insert(all.uvs.end(), m.uvs.begin(), m.uvs.end());
+    } else {
+        const Mat4 xf = o.track.matrix_at(t);
+        const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
+        // A mirroring transform reverses the winding, and with it the emitting side.
+        const bool flip = glm::determinant(glm::mat3(xf)) < 0.f;
+        for (size_t tri = 0; tri < m.size(); ++tri)
+            for (int k = 0; k < 3; ++k) {
+                const size_t c = 3 * tri + size_t(flip && k ? 3 - k : k);
+                all.positions.push_back(Vec3(xf * Vec4(m.positions[c], 1.f)));
+                all.normals.push_back(nxf * m.normals[c]);
+                all.uvs.push_back(m.uvs[c]);
+            }
+    }
+    all.material_ids.insert(all.material_ids.end(), m.material_ids.begin(), m.material_ids.end());
+    all.object_ids.insert(all.object_ids.end(), m.size(), id);
+}
+
+}  // namespace
+
 std::unique_ptr<Scene> AnimatedScene::scene_at(double t) const {
     TriangleMesh all;
-    size_t n = 0;
-    for (const AnimatedObject& o : objects_) n += o.mesh.size();
-    all.positions.reserve(3 * n), all.normals.reserve(3 * n), all.uvs.reserve(3 * n);
-    all.material_ids.reserve(n), all.object_ids.reserve(n);
-    for (uint32_t id = 0; id < objects_.size(); ++id) {
-        const AnimatedObject& o = objects_[id];
-        const TriangleMesh& m = o.mesh;
-        if (m.normals.size() != m.positions.size() || m.uvs.size() != m.positions.size())
-            throw InputError(origin_ + ": object " + std::to_string(id) + " (" + o.name +
-                             ") needs a normal and a uv per corner");
-        if (o.track.empty()) {
-            // Copied as they are: a static object is bit for bit the still scene's.
-            all.positions.insert(all.positions.end(), m.positions.begin(), m.positions.end());
-            all.normals.insert(all.normals.end(), m.normals.begin(), m.normals.end());
-            all.uvs.insert(all.uvs.end(), m.uvs.begin(), m.uvs.end());
-        } else {
-            const Mat4 xf = o.track.matrix_at(t);
-            const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
-            // A mirroring transform reverses the winding, and with it the emitting side.
-            const bool flip = glm::determinant(glm::mat3(xf)) < 0.f;
-            for (size_t tri = 0; tri < m.size(); ++tri)
-                for (int k = 0; k < 3; ++k) {
-                    const size_t c = 3 * tri + size_t(flip && k ? 3 - k : k);
-                    all.positions.push_back(Vec3(xf * Vec4(m.positions[c], 1.f)));
-                    all.normals.push_back(nxf * m.normals[c]);
-                    all.uvs.push_back(m.uvs[c]);
-                }
-        }
-        all.material_ids.insert(all.material_ids.end(), m.material_ids.begin(), m.material_ids.end());
-        all.object_ids.insert(all.object_ids.end(), m.size(), id);
+    if (any_moves_) {
+        // The static triangles first (those of the shared BVH), the moving ones after.
+        all = static_mesh_;
+        for (uint32_t id = 0; id < objects_.size(); ++id)
+            if (!objects_[id].track.empty()) append_object(all, objects_[id], id, t);
+    } else {
+        // In the file's order: a still camera makes the still scene's Scene, bit for bit.
+        for (uint32_t id = 0; id < objects_.size(); ++id) append_object(all, objects_[id], id, t);
     }
-    auto scene = std::make_unique<Scene>(std::move(all), materials_, camera_at(t), origin_);
+    auto scene = std::make_unique<Scene>(std::move(all), materials_, camera_at(t), origin_,
+                                         share_static_ ? shared_ : nullptr);
     if (environment_) scene->set_environment(environment_);
     return scene;
 }

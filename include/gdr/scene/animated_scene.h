@@ -2,13 +2,12 @@
 // source of a Scene at any frame, and of the exact screen-space motion of the
 // surface a pixel sees, which temporal reconstruction needs.
 //
-// Each frame's Scene is built afresh from the objects' geometry, loaded once:
-// the static objects' triangles are copied as they are and the moving ones'
-// are transformed, then one BVH is built over all. Embree instances would
-// keep the static BVH, but the Scene's hit records, light table and shift
-// mappings index one flat triangle array; for the bundled scenes (a few
-// thousand triangles) the rebuild takes milliseconds against a second of
-// rendering.
+// A frame's Scene keeps the BVH of the objects that never move: when some
+// object moves, the static objects' triangles are built into one Embree BVH
+// once (SharedGeometry), which every frame's Scene instances, and a frame
+// builds a BVH only over the moving objects' triangles at their transforms.
+// The Scene's per-triangle tables (materials, frames, lights) are still
+// rebuilt per frame: they index one flat triangle array.
 #pragma once
 
 #include <cstdint>
@@ -60,6 +59,13 @@ public:
     void set_camera_optics(const CameraDesc& d);
     /// The camera's keys (empty: a fixed camera).
     const CameraTrack& camera_track() const { return camera_track_; }
+    /// True if frames share the static objects' BVH (some object moves, no
+    /// material has an alpha cut-out, some static object has triangles).
+    bool shares_static_geometry() const { return shared_ != nullptr && share_static_; }
+    /// Turns the sharing of the static BVH off (each frame then builds one
+    /// BVH over all triangles, in the same order) or back on: for
+    /// comparisons of the two. Not synchronised with scene_at().
+    void set_static_sharing(bool on) { share_static_ = on; }
 
 private:
     std::vector<AnimatedObject> objects_;
@@ -69,6 +75,10 @@ private:
     std::shared_ptr<const Environment> environment_;
     AnimationRange range_;
     std::string origin_;
+    bool any_moves_ = false;                  // some object has keys
+    TriangleMesh static_mesh_;                // the static objects' triangles (zero-area ones dropped), object ids set
+    std::shared_ptr<SharedGeometry> shared_;  // their BVH, or null
+    bool share_static_ = true;                // see set_static_sharing()
 };
 
 /// What the centre of one pixel sees, and where that surface point appears
