@@ -115,6 +115,28 @@ double relmse(const Image& img, const Image& ref, const RelMseOptions& opt) {
     return sum / double(img.values().size());
 }
 
+double temporal_relmse(const std::vector<Image>& imgs, const std::vector<Image>& refs, float eps) {
+    if (imgs.size() != refs.size())
+        throw ParameterError(fmt::format("temporal_relmse: {} images but {} references", imgs.size(), refs.size()));
+    if (imgs.size() < 2) throw ParameterError("temporal_relmse: needs at least two frames");
+    if (!(eps > 0.f)) throw ParameterError("temporal_relmse: eps must be positive, got " + std::to_string(eps));
+    for (size_t k = 0; k < imgs.size(); ++k) {
+        check_pair(imgs[k], refs[k], "temporal_relmse");
+        if (!imgs[k].same_shape(imgs[0]))
+            throw ParameterError(fmt::format("temporal_relmse: frame {} differs in shape from frame 0", k));
+    }
+    double sum = 0.0;
+    for (size_t k = 0; k + 1 < imgs.size(); ++k) {
+        const auto &x0 = imgs[k].values(), &x1 = imgs[k + 1].values(), &r0 = refs[k].values(), &r1 = refs[k + 1].values();
+        for (size_t i = 0; i < x0.size(); ++i) {
+            const double d = (double(x1[i]) - double(x0[i])) - (double(r1[i]) - double(r0[i]));
+            const double m = 0.5 * (double(r1[i]) + double(r0[i]));
+            sum += d * d / (m * m + double(eps));
+        }
+    }
+    return sum / (double(imgs.size() - 1) * double(imgs[0].values().size()));
+}
+
 double ssim(const Image& img, const Image& ref, const SsimOptions& opt) {
     check_pair(img, ref, "ssim");
     const int w = img.width(), h = img.height(), c = img.channels();

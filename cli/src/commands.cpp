@@ -63,7 +63,7 @@ const CommandHelp kCommands[] = {
      "gdr render SCENE.json|SCENE.xml [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
      "           [-D name=value]... [--lenient] [--first-sample K] [--continue] [--exposure STOPS]\n"
-     "           -o OUT.exr",
+     "           [--frame K | --frames FIRST:LAST] -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
      "  --integrator NAME     pt, gpt, bdpt, or any registered integrator (gdr list); default: the scene's\n"
@@ -86,14 +86,20 @@ const CommandHelp kCommands[] = {
      "  --lenient             a Mitsuba XML scene's unsupported elements become warnings and are skipped\n"
      "  --exposure STOPS      exposure of the PNG preview\n"
      "  -o OUT.exr            the output; never one of the inputs\n"
+     "  --frame K             frame K of an animated scene (default: its first frame); the image gets the\n"
+     "                        layers motion_fwd, motion_bwd (pixels to frames K+1, K-1) and object_id\n"
+     "  --frames FIRST:LAST   every frame from FIRST to LAST (inclusive), each an independent render whose\n"
+     "                        seed derives from --seed and the frame; -o (and --resume) take a frame\n"
+     "                        pattern such as out.%04d.exr\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
      "143); a second Ctrl-C stops at once."},
-    {"merge", "gdr merge A.exr B.exr [...] [--complete] -o OUT.exr",
+    {"merge", "gdr merge A.exr B.exr [...] [--complete] [--frames FIRST:LAST] -o OUT.exr",
      "Pools renders of one scene with one integrator and its parameters (parts rendered with different\n"
      "seeds, or continuations of one seed) into the image of all their samples. Renders that hold the\n"
      "same samples, or differ in scene, integrator, parameter or resolution, are refused. A merged\n"
      "file can be merged again.\n"
-     "  --complete   refuse renders short of the samples they were asked for (stopped early)"},
+     "  --complete   refuse renders short of the samples they were asked for (stopped early)\n"
+     "  --frames FIRST:LAST  merge each frame of an animation: every file name is a pattern (a.%04d.exr)"},
     {"submit",
      "gdr submit SCENE.json --parts N [--spp N] [--seed S] [--integrator NAME] [--set key=value]...\n"
      "           [--width W] [--height H] [--resolution WxH] [--threads N] [--partition NAME]\n"
@@ -128,7 +134,8 @@ const CommandHelp kCommands[] = {
      "NAME-primal/dx/dy/direct.exr files of the Mitsuba-based implementation).\n"
      "  --method NAME   poisson-l1 (default), poisson-l2, or any registered reconstructor (gdr list)\n"
      "  --alpha A       weight of the primal in the screened Poisson energy (default 0.2)"},
-    {"compare", "gdr compare IMAGE.exr REFERENCE.exr [--layer NAME] [--ref-layer NAME] [--downsample K]",
+    {"compare", "gdr compare IMAGE.exr REFERENCE.exr [--layer NAME] [--ref-layer NAME] [--downsample K]\n"
+                "gdr compare --frames 'IMAGE.%04d.exr' 'REFERENCE.%04d.exr' FIRST:LAST [--layer NAME] [...]",
      "Prints which layers are compared, the error of IMAGE against REFERENCE (MSE, relMSE, MAE, SSIM)\n"
      "and the per-channel means of both.\n"
      "  --layer NAME      layer of IMAGE (default: its final image, the one its PNG preview shows:\n"
@@ -139,6 +146,9 @@ const CommandHelp kCommands[] = {
      "  --downsample K    box-filter the larger image down by K, which must be exactly K times the\n"
      "                    smaller in both dimensions; without it, sizes that differ by one integer\n"
      "                    factor in both dimensions are downsampled automatically\n"
+     "  --frames          compare frames FIRST to LAST (inclusive) of two sequences: each frame's relMSE,\n"
+     "                    their mean, and the temporal (flicker) relMSE, mean over consecutive frames,\n"
+     "                    pixels and channels of ((x[k+1]-x[k])-(r[k+1]-r[k]))^2/(((r[k+1]+r[k])/2)^2+0.01)\n"
      "A grey layer is broadcast to compare with an RGB one, and alpha is dropped to compare with RGB."},
     {"check-shift",
      "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--integrator gpt|gbdpt] [--paths N] [--seed S]\n"

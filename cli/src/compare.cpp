@@ -12,6 +12,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "frames.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
 #include "gdr/metrics.h"
@@ -131,27 +132,14 @@ std::string differences_line(const Image& img, const Image& ref) {
                        differ, a.size(), max_abs, max_ref > 0.0 ? max_abs / max_ref : 0.0, max_rel);
 }
 
-}  // namespace
+/// Both sides read and brought to one shape, with the lines saying which layers and what was done.
+struct Pair {
+    Side img, ref;
+    std::string notes;
+};
 
-int compare(const std::vector<std::string>& args) {
-    ArgReader a{args};
-    std::string img_path, ref_path, layer, ref_layer;
-    int factor = 0;  // 0: automatic
-    while (a.more()) {
-        const std::string o = a.next();
-        if (o == "-h" || o == "--help") {
-            fmt::print("{}", usage("compare"));
-            return 0;
-        } else if (o == "--layer") layer = a.value(o);
-        else if (o == "--ref-layer") ref_layer = a.value(o);
-        else if (o == "--downsample") factor = int(a.int_value(o, 1, 1 << 16));
-        else if (!o.empty() && o[0] == '-') throw ParameterError("compare: unknown option '" + o + "'\n" + usage("compare"));
-        else if (img_path.empty()) img_path = o;
-        else if (ref_path.empty()) ref_path = o;
-        else throw ParameterError("compare: unexpected argument '" + o + "'");
-    }
-    if (ref_path.empty()) throw ParameterError("compare: expected IMAGE.exr REFERENCE.exr\n" + usage("compare"));
-
+Pair load_pair(const std::string& img_path, const std::string& ref_path, const std::string& layer,
+               const std::string& ref_layer, int factor) {
     const FrameBuffer img_fb = read_exr(img_path), ref_fb = read_exr(ref_path);
     Side img{"image", img_path, layer, "--layer", {}};
     if (layer.empty()) img.layer = final_layer(img_fb, img_path), img.reason = "its final image";
@@ -180,6 +168,72 @@ int compare(const std::vector<std::string>& args) {
     out += fmt::format("reference:     {} layer '{}' ({})\n", ref.path, ref.layer, ref.reason);
     out += match_sizes(img, ref, factor);
     out += match_channels(img, ref);
+    return {std::move(img), std::move(ref), std::move(out)};
+}
+
+// gdr compare --frames: each frame's relMSE, and the temporal error of the sequence.
+int compare_frames(const std::string& img_pattern, const std::string& ref_pattern, const std::string& range,
+                   const std::string& layer, const std::string& ref_layer, int factor) {
+    if (range.empty()) throw ParameterError("compare --frames: give the frame range FIRST:LAST after the two patterns");
+    const auto [first, last] = parse_frame_range("--frames", range);
+    if (last > first && (!has_frame_pattern(img_pattern) || !has_frame_pattern(ref_pattern)))
+        throw ParameterError("compare --frames: '" + (has_frame_pattern(img_pattern) ? ref_pattern : img_pattern) +
+                             "' has no frame number pattern (%04d)");
+    std::vector<Image> imgs, refs;
+    std::string out;
+    double sum = 0.0;
+    for (int k = first; k <= last; ++k) {
+        Pair p = load_pair(frame_path("--frames", img_pattern, k), frame_path("--frames", ref_pattern, k), layer,
+                           ref_layer, factor);
+        if (k == first) out += p.notes;
+        if (!imgs.empty() && !p.img.img.same_shape(imgs.back()))
+            throw InputError(p.img.label() + " differs in size or channels from the frame before it");
+        const double e = relmse(p.img.img, p.ref.img, RelMseOptions::thesis());
+        sum += e;
+        out += fmt::format("frame {}: relMSE {:.6g}\n", k, e);
+        imgs.push_back(std::move(p.img.img));
+        refs.push_back(std::move(p.ref.img));
+    }
+    out += fmt::format("mean relMSE:   {:.6g} over {} frames (mean of (x-r)^2/(r^2+0.01) per frame; thesis convention)\n",
+                       sum / double(imgs.size()), imgs.size());
+    if (imgs.size() >= 2)
+        out += fmt::format("temporal relMSE: {:.6g} (flicker: mean over consecutive frames k, pixels and channels of "
+                           "((x[k+1]-x[k])-(r[k+1]-r[k]))^2/(((r[k+1]+r[k])/2)^2+0.01))\n",
+                           temporal_relmse(imgs, refs, 0.01f));
+    else
+        out += "temporal relMSE: n/a (one frame has no frame-to-frame differences)\n";
+    fmt::print("{}", out);
+    return 0;
+}
+
+}  // namespace
+
+int compare(const std::vector<std::string>& args) {
+    ArgReader a{args};
+    std::string img_path, ref_path, layer, ref_layer;
+    int factor = 0;  // 0: automatic
+    bool frames = false;  // --frames: IMAGE and REFERENCE are %04d patterns, then a range FIRST:LAST
+    std::string frames_arg;
+    while (a.more()) {
+        const std::string o = a.next();
+        if (o == "-h" || o == "--help") {
+            fmt::print("{}", usage("compare"));
+            return 0;
+        } else if (o == "--layer") layer = a.value(o);
+        else if (o == "--ref-layer") ref_layer = a.value(o);
+        else if (o == "--downsample") factor = int(a.int_value(o, 1, 1 << 16));
+        else if (o == "--frames") frames = true;
+        else if (!o.empty() && o[0] == '-') throw ParameterError("compare: unknown option '" + o + "'\n" + usage("compare"));
+        else if (img_path.empty()) img_path = o;
+        else if (ref_path.empty()) ref_path = o;
+        else if (frames && frames_arg.empty()) frames_arg = o;
+        else throw ParameterError("compare: unexpected argument '" + o + "'");
+    }
+    if (ref_path.empty()) throw ParameterError("compare: expected IMAGE.exr REFERENCE.exr\n" + usage("compare"));
+
+    if (frames) return compare_frames(img_path, ref_path, frames_arg, layer, ref_layer, factor);
+    if (!frames_arg.empty()) throw ParameterError("compare: a frame range needs --frames");
+    auto [img, ref, out] = load_pair(img_path, ref_path, layer, ref_layer, factor);
     out += compare_report(img.img, ref.img);
     out += differences_line(img.img, ref.img);
     fmt::print("{}", out);

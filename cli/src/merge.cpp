@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "frames.h"
 #include "say.h"
 #include "gdr/core/error.h"
 #include "gdr/core/params.h"
@@ -25,6 +26,37 @@ std::unique_ptr<Integrator> integrator_of(const StoredRender& p) {
 }  // namespace
 
 int merge(const std::vector<std::string>& args) {
+    // --frames A:B: one merge per frame of an animation, every file name a %04d pattern.
+    for (size_t i = 0; i < args.size(); ++i) {
+        if (args[i] == "-h" || args[i] == "--help") break;
+        if (args[i] == "-o" || args[i] == "--output") {
+            ++i;
+            continue;
+        }
+        if (args[i] != "--frames") continue;
+        if (i + 1 >= args.size()) throw ParameterError("option --frames needs a value");
+        const auto [first, last] = parse_frame_range("--frames", args[i + 1]);
+        std::vector<std::string> rest(args.begin(), args.begin() + long(i));
+        rest.insert(rest.end(), args.begin() + long(i) + 2, args.end());
+        for (size_t j = 0; j < rest.size(); ++j) {
+            if (rest[j] == "--frames") throw ParameterError("merge: give --frames once");
+            const bool file = rest[j] == "-o" || rest[j] == "--output" || rest[j][0] != '-';
+            if (rest[j] == "-o" || rest[j] == "--output") ++j;
+            if (file && j < rest.size() && last > first && !has_frame_pattern(rest[j]))
+                throw ParameterError("merge --frames: '" + rest[j] + "' has no frame number pattern (%04d)");
+        }
+        for (int k = first; k <= last; ++k) {
+            std::vector<std::string> a = rest;
+            for (size_t j = 0; j < a.size(); ++j) {
+                if (a[j] == "-o" || a[j] == "--output") ++j;
+                else if (!a[j].empty() && a[j][0] == '-') continue;
+                if (j < a.size()) a[j] = frame_path("merge --frames", rest[j], k);
+            }
+            const int rc = merge(a);
+            if (rc != 0) return rc;
+        }
+        return 0;
+    }
     ArgReader a{args};
     std::vector<std::string> inputs;
     std::string out;

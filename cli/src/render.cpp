@@ -8,10 +8,12 @@
 #include <filesystem>
 #include <limits>
 #include <mutex>
+#include <optional>
 
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "frames.h"
 #include "render_options.h"
 #include "say.h"
 #include "gdr/core/error.h"
@@ -19,6 +21,7 @@
 #include "gdr/io/exr.h"
 #include "gdr/io/png.h"
 #include "gdr/io/scene_file.h"
+#include "gdr/scene/animated_scene.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/shift/shift.h"
 
@@ -112,7 +115,17 @@ std::pair<int, int> parse_resolution(const std::string& v) {
             int(ArgReader::parse_int("--resolution", v.substr(x + 1), 1, kMaxResolution))};
 }
 
-int render(const std::vector<std::string>& args) {
+namespace {
+
+// One frame of `gdr render --frame(s)`: its number, and the scene loaded for
+// the first frame rendered (the OBJs are read once for all frames).
+struct FrameJob {
+    int frame = 0;
+    SceneFile* scene = nullptr;
+};
+
+// gdr render of one image: a still, or the frame `job` of an animation.
+int render_one(const std::vector<std::string>& args, FrameJob* job) {
     // A closed pipe on stderr (`2>&1 | head -1`) must not kill a render: its
     // messages are optional, its file is not (say() ignores failed writes).
     struct IgnorePipe {
@@ -190,12 +203,30 @@ int render(const std::vector<std::string>& args) {
     }
 
     const auto t_load = std::chrono::steady_clock::now();
-    SceneFile sf = load_scene_file(scene_path, scene_options);
-    for (const std::string& w : sf.warnings) say("warning: {}\n", w);
-    for (const std::string& s : scene_sets) apply_scene_setting(sf, s);
-    if (width > 0 || height > 0) set_resolution(sf, width, height);
+    SceneFile local;
+    SceneFile& sf = job && job->scene ? *job->scene : local;
+    if (!sf.scene) {
+        sf = load_scene_file(scene_path, scene_options);
+        for (const std::string& w : sf.warnings) say("warning: {}\n", w);
+        for (const std::string& s : scene_sets) apply_scene_setting(sf, s);
+        if (width > 0 || height > 0) set_resolution(sf, width, height);
+    }
+    // An animation renders one frame (its first, unless --frame says which):
+    // the frame's own scene, seed and motion layers.
+    std::optional<int> frame;
+    if (job) {
+        if (!sf.animation)
+            throw InputError(scene_path + ": --frame and --frames need a scene with an 'animation' block (frames)");
+        frame = job->frame;
+    } else if (sf.animation) {
+        frame = sf.animation->range().first;
+    }
+    if (frame) set_frame(sf, *frame);
     const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
     check_not_an_input(out_path, sf.inputs);
+    // The seed of a frame depends on the frame alone, so that any subset of
+    // frames, in any order or process, renders the same files.
+    const auto frame_seed_of = [&](uint64_t s) { return frame ? frame_seed(s, *frame) : s; };
 
     // A resumed render is continued with its own integrator and parameters;
     // --integrator and --set may only repeat them.
@@ -221,10 +252,12 @@ int render(const std::vector<std::string>& args) {
     identity.width = cam.width(), identity.height = cam.height();
     identity.scene = std::filesystem::absolute(scene_path).string();
     identity.scene_hash = sf.content_hash;
+    if (frame) identity.frame = std::to_string(*frame);
 
     RenderSettings st;
     st.threads = threads;
-    st.seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
+    const uint64_t base_seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
+    st.seed = frame_seed_of(base_seed);
     st.first_sample = first_sample >= 0 ? first_sample : 0;
     st.cancel = &g_interrupted;
     st.abort = &g_abort;
@@ -251,9 +284,10 @@ int render(const std::vector<std::string>& args) {
                                              out_path, previous.first_sample, previous.first_sample + previous.spp - 1,
                                              previous.seed, st.first_sample, st.seed));
             if (spp < 0) spp = sf.defaults.spp;
-        } else if (seed >= 0 && uint64_t(seed) != previous.seed)
+        } else if (seed >= 0 && frame_seed_of(uint64_t(seed)) != previous.seed)
             throw InputError(resume_path + ": rendered with seed " + std::to_string(previous.seed) + ", not " +
-                             std::to_string(seed));
+                             std::to_string(frame_seed_of(uint64_t(seed))) +
+                             (frame ? " (frame " + std::to_string(*frame) + " of seed " + std::to_string(seed) + ")" : ""));
         st.seed = previous.seed;
         const uint64_t reached = previous.first_sample + previous.spp;  // the next sample number to take
         st.first_sample = (long long)reached;
@@ -300,8 +334,9 @@ int render(const std::vector<std::string>& args) {
     }
 
     const auto& ss = sf.scene->stats();
-    say("scene {}: {} triangles ({} degenerate skipped), {} emitting, {}x{}, loaded in {:.2f} s\n", scene_path,
-        ss.triangles, ss.degenerate_skipped, ss.emitters, cam.width(), cam.height(), load_s);
+    say("scene {}{}: {} triangles ({} degenerate skipped), {} emitting, {}x{}, {} in {:.2f} s\n", scene_path,
+        frame ? fmt::format(" frame {}", *frame) : "", ss.triangles, ss.degenerate_skipped, ss.emitters, cam.width(),
+        cam.height(), frame ? "loaded and built" : "loaded", load_s);
     // Per mesh, so that a truncated file shows.
     for (const MeshStats& m : sf.meshes) say("  {}: {} triangles\n", m.file, m.triangles);
     if (!sf.scene->has_lights()) say("warning: the scene has no emitters; the image will be black\n");
@@ -337,7 +372,19 @@ int render(const std::vector<std::string>& args) {
     }
 
     const bool interrupted = g_interrupted || g_abort;
+    if (frame) {
+        // In the driver, not the integrators: every integrator's frames get them.
+        const auto t_motion = std::chrono::steady_clock::now();
+        add_motion_layers(fb, *sf.animation, *sf.scene, *frame);
+        say("motion vectors and object ids of frame {} in {:.3f} s\n", *frame,
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t_motion).count());
+    }
     auto& meta = fb.metadata();
+    if (frame) {
+        meta["frame"] = std::to_string(*frame);
+        meta["frame_base_seed"] = std::to_string(base_seed);
+        meta["fps"] = fmt::format("{}", sf.animation->range().fps);
+    }
     meta["integrator"] = name;
     meta["scene"] = identity.scene;
     if (!identity.scene_hash.empty()) meta["scene_hash"] = identity.scene_hash;
@@ -392,6 +439,58 @@ int render(const std::vector<std::string>& args) {
         say("the reconstructions were skipped to stop at once: gdr reconstruct {} computes one, and --resume or "
             "gdr merge recompute them\n", out_path);
     return interrupted ? 128 + (g_signal ? g_signal.load() : SIGINT) : 0;  // the shell's convention
+}
+
+}  // namespace
+
+int render(const std::vector<std::string>& args) {
+    // --frame K and --frames A:B make one independent render per frame; the
+    // other options apply to each, -o and --resume through their %d pattern.
+    std::vector<std::string> rest;
+    std::optional<std::pair<int, int>> frames;
+    std::string frames_opt;
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& o = args[i];
+        if (o == "--frame" || o == "--frames") {
+            if (i + 1 >= args.size()) throw ParameterError("option " + o + " needs a value");
+            if (frames) throw ParameterError("render: give one of --frame and --frames, once");
+            const std::string v = args[++i];
+            if (o == "--frame") {
+                const int k = int(ArgReader::parse_int(o, v, -(1LL << 30), 1LL << 30));
+                frames = std::make_pair(k, k);
+            } else {
+                frames = parse_frame_range(o, v);
+            }
+            frames_opt = o + " " + v;
+            continue;
+        }
+        if (o == "-h" || o == "--help") return print_usage("render");
+        rest.push_back(o);
+        // An option's value is never taken for --frame(s).
+        if ((o == "-o" || o == "--output" || o == "--resume" || o == "--set" || o == "-D") && i + 1 < args.size())
+            rest.push_back(args[++i]);
+    }
+    if (!frames) return render_one(args, nullptr);
+    const bool several = frames->second > frames->first;
+    std::vector<size_t> patterned;  // positions in `rest` of the values of -o and --resume
+    for (size_t i = 0; i + 1 < rest.size(); ++i)
+        if (rest[i] == "-o" || rest[i] == "--output" || rest[i] == "--resume") {
+            patterned.push_back(i + 1);
+            if (several && !has_frame_pattern(rest[i + 1]))
+                throw ParameterError("render " + frames_opt + ": " + rest[i] + " '" + rest[i + 1] +
+                                     "' has no frame number pattern (%04d) for the frames to go to different files");
+            (void)frame_path(rest[i], rest[i + 1], frames->first);  // a malformed pattern fails before any render
+            ++i;
+        }
+    SceneFile scene;  // loaded by the first frame, then shared
+    for (int k = frames->first; k <= frames->second; ++k) {
+        std::vector<std::string> a = rest;
+        for (size_t i : patterned) a[i] = frame_path(a[i - 1], rest[i], k);
+        FrameJob job{k, &scene};
+        const int rc = render_one(a, &job);
+        if (rc != 0) return rc;  // interrupted: the frames after it are not started
+    }
+    return 0;
 }
 
 int info(const std::vector<std::string>& args) {

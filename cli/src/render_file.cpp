@@ -209,6 +209,7 @@ RenderIdentity identity_of(const StoredRender& r) {
     id.width = r.fb.width(), id.height = r.fb.height();
     id.scene = m.at("scene");
     if (m.count("scene_hash")) id.scene_hash = m.at("scene_hash");
+    if (m.count("frame")) id.frame = m.at("frame");
     return id;
 }
 
@@ -226,6 +227,10 @@ void check_same_render(const RenderIdentity& a, const std::string& a_name, const
     }
     for (const auto& [k, v] : pb)
         if (!pa.count(k)) throw InputError(both + " differ in integrator parameter '" + k + "': none against " + v);
+    // Frames of one animation share everything else; their samples are of different images.
+    if (a.frame != b.frame)
+        throw InputError(both + " differ in 'frame': " + (a.frame.empty() ? "a still image" : "frame " + a.frame) +
+                         " against " + (b.frame.empty() ? "a still image" : "frame " + b.frame));
     if (a.width != b.width || a.height != b.height)
         throw InputError(fmt::format("{} differ in resolution: {}x{} against {}x{}", both, a.width, a.height, b.width,
                                      b.height));

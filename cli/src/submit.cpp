@@ -782,6 +782,10 @@ int submit(const std::vector<std::string>& args) {
     if (fs::exists(dir, ec))
         throw InputError("refusing to submit: the parts folder " + dir + " exists and is not a gdr submission; remove it");
     SceneFile sf = load_scene_file(scene_path);
+    // Its parts would take a frame's seed, not the plan's, and read as unusable.
+    if (sf.animation)
+        throw InputError(scene_path + ": is an animation; gdr submit divides one still image into parts. Render its "
+                         "frames with gdr render --frames FIRST:LAST (every frame an independent job, e.g. one per task)");
     std::vector<std::string> integrator_sets;
     for (const std::string& s : sets) {
         check_one_line("--set", s);

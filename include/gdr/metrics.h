@@ -5,6 +5,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "gdr/core/image.h"
 
@@ -30,6 +31,15 @@ struct RelMseOptions {
 /// Relative MSE (unitless): mean over pixels and channels of (x - r)^2 / (d + eps),
 /// d = r_c^2, or (mean_c r_c)^2 with grey_denominator (ALGORITHMS.md section 8).
 double relmse(const Image& img, const Image& ref, const RelMseOptions& opt = {});
+
+/// Temporal (flicker) error of an image sequence against a reference sequence
+/// (unitless): the relMSE of the frame-to-frame differences, mean over the
+/// n - 1 consecutive pairs k, the pixels and the channels of
+///   ((x[k+1] - x[k]) - (r[k+1] - r[k]))^2 / (((r[k+1] + r[k]) / 2)^2 + eps).
+/// The denominator is the reference's radiance at the pair, not its
+/// difference, which is zero wherever nothing changes. Needs at least two
+/// frames, all of one shape, as many images as references.
+double temporal_relmse(const std::vector<Image>& imgs, const std::vector<Image>& refs, float eps = 0.01f);
 
 /// How SSIM maps HDR radiance to the [0,1] range it needs.
 struct SsimOptions {

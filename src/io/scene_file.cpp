@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <string_view>
@@ -226,6 +227,160 @@ Mat4 parse_transform(const std::string& file, const json& j) {
         r = glm::rotate(r, glm::radians(get_number(file, a[3], "rotate")), glm::normalize(axis));
     }
     if (j.contains("scale")) r = glm::scale(r, get_vec3(file, j["scale"], "transform.scale"));
+    return r;
+}
+
+// A key's frame: a finite number, fractional allowed.
+double key_frame(const std::string& file, const std::string& where, const json& k) {
+    if (!k.contains("frame")) fail(file, where + " needs a 'frame'");
+    if (!k["frame"].is_number() || !std::isfinite(k["frame"].get<double>()))
+        fail(file, "'" + where + ".frame' must be a finite number, got " + k["frame"].dump());
+    return k["frame"].get<double>();
+}
+
+// The "keys" array at `where`: an array of objects whose frames strictly increase.
+void check_key_list(const std::string& file, const std::string& where, const json& keys) {
+    if (!keys.is_array() || keys.empty()) fail(file, "'" + where + "' must be a non-empty array of keys");
+    double prev = 0.0;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        const std::string at = where + "[" + std::to_string(i) + "]";
+        if (!keys[i].is_object()) fail(file, "'" + at + "' must be an object");
+        const double f = key_frame(file, at, keys[i]);
+        if (i > 0 && !(f > prev))
+            fail(file, "'" + at + ".frame' is " + keys[i]["frame"].dump() + ", not after the previous key's " +
+                           json(prev).dump() + " (keys must be in strictly increasing frame order)");
+        prev = f;
+    }
+}
+
+// A numeric array of exactly n finite numbers at `where`.
+std::vector<double> finite_numbers(const std::string& file, const std::string& where, const json& j, size_t n,
+                                   const std::string& shape) {
+    if (!j.is_array() || j.size() != n) fail(file, "'" + where + "' must be " + shape);
+    std::vector<double> v;
+    for (const json& x : j) {
+        if (!x.is_number() || !std::isfinite(x.get<double>())) fail(file, "'" + where + "' must be " + shape);
+        v.push_back(x.get<double>());
+    }
+    return v;
+}
+
+// A mesh entry's "keys": its motion, applied after the entry's fixed transform.
+TransformTrack parse_object_keys(const std::string& file, const std::string& where, const json& keys) {
+    check_key_list(file, where, keys);
+    TransformTrack track;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        const std::string at = where + "[" + std::to_string(i) + "]";
+        const json& k = keys[i];
+        check_keys(file, at, k, {"frame", "translate", "rotate", "quaternion", "scale"});
+        TransformKey key;
+        key.frame = key_frame(file, at, k);
+        if (k.contains("translate")) {
+            const auto v = finite_numbers(file, at + ".translate", k["translate"], 3, "an array of 3 finite numbers");
+            key.value.translate = Vec3(float(v[0]), float(v[1]), float(v[2]));
+        }
+        if (k.contains("scale")) {
+            const json& sj = k["scale"];
+            std::vector<double> v;
+            if (sj.is_number()) v.assign(3, sj.get<double>());
+            else v = finite_numbers(file, at + ".scale", sj, 3, "a number or an array of 3 numbers");
+            for (double x : v)
+                if (!std::isfinite(x) || x == 0.0)
+                    fail(file, "'" + at + ".scale' must be finite and non-zero, got " + sj.dump());
+            key.value.scale = Vec3(float(v[0]), float(v[1]), float(v[2]));
+        }
+        if (k.contains("rotate") && k.contains("quaternion"))
+            fail(file, "'" + at + "' gives both 'rotate' and 'quaternion'; give one rotation");
+        if (k.contains("rotate")) {
+            const auto v = finite_numbers(file, at + ".rotate", k["rotate"], 4, "[axis x, y, z, degrees]");
+            const glm::dvec3 axis(v[0], v[1], v[2]);
+            if (!(glm::length(axis) > 0.0)) fail(file, "'" + at + ".rotate' has a zero axis");
+            key.value.rotate = Quat(glm::angleAxis(glm::radians(v[3]), glm::normalize(axis)));
+        }
+        if (k.contains("quaternion")) {
+            const auto v = finite_numbers(file, at + ".quaternion", k["quaternion"], 4, "[w, x, y, z], 4 finite numbers");
+            const double norm = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]);
+            // A far-from-unit quaternion is a typing error, not a rotation with a scale.
+            if (!(std::abs(norm - 1.0) <= 1e-3))
+                fail(file, "'" + at + ".quaternion' " + k["quaternion"].dump() + " has norm " + json(norm).dump() +
+                               ", not 1 (a rotation is a unit quaternion [w, x, y, z])");
+            key.value.rotate = glm::normalize(Quat(float(v[0]), float(v[1]), float(v[2]), float(v[3])));
+        }
+        track.keys.push_back(key);
+    }
+    return track;
+}
+
+// The camera's "keys": look-at poses or camera-to-world matrices.
+CameraTrack parse_camera_keys(const std::string& file, const json& keys) {
+    const std::string where = "camera.keys";
+    check_key_list(file, where, keys);
+    CameraTrack track;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        const std::string at = where + "[" + std::to_string(i) + "]";
+        const json& k = keys[i];
+        check_keys(file, at, k, {"frame", "position", "target", "up", "matrix"});
+        CameraKey key;
+        key.frame = key_frame(file, at, k);
+        if (k.contains("matrix")) {
+            if (k.contains("position") || k.contains("target") || k.contains("up"))
+                fail(file, "'" + at + "': 'matrix' cannot be combined with position, target or up");
+            const auto v = finite_numbers(file, at + ".matrix", k["matrix"], 16, "16 finite numbers (row-major)");
+            glm::dmat3 r;
+            for (int row = 0; row < 3; ++row)
+                for (int col = 0; col < 3; ++col) r[col][row] = v[size_t(4 * row + col)];
+            if (v[12] != 0.0 || v[13] != 0.0 || v[14] != 0.0 || v[15] != 1.0)
+                fail(file, "'" + at + ".matrix' must end in the row 0 0 0 1");
+            const glm::dmat3 e = glm::transpose(r) * r;
+            double off = 0.0;
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b) off = std::max(off, std::abs(e[a][b] - (a == b ? 1.0 : 0.0)));
+            if (off > 1e-3 || glm::determinant(r) < 0.0)
+                fail(file, "'" + at + ".matrix' must be a rotation (orthonormal columns right, up, backwards, "
+                               "determinant 1) and a translation");
+            key.pose.position = Vec3(float(v[3]), float(v[7]), float(v[11]));
+            key.pose.orientation = glm::normalize(Quat(glm::quat_cast(glm::mat3(r))));
+        } else {
+            if (!k.contains("position") || !k.contains("target"))
+                fail(file, "'" + at + "' needs 'position' and 'target' (and optionally 'up'), or a 'matrix'");
+            const auto p = finite_numbers(file, at + ".position", k["position"], 3, "an array of 3 finite numbers");
+            const auto t = finite_numbers(file, at + ".target", k["target"], 3, "an array of 3 finite numbers");
+            Vec3 up(0.f, 1.f, 0.f);
+            if (k.contains("up")) {
+                const auto u = finite_numbers(file, at + ".up", k["up"], 3, "an array of 3 finite numbers");
+                up = Vec3(float(u[0]), float(u[1]), float(u[2]));
+            }
+            try {
+                key.pose = CameraPose::look_at(Vec3(float(p[0]), float(p[1]), float(p[2])),
+                                               Vec3(float(t[0]), float(t[1]), float(t[2])), up);
+            } catch (const Error& e) {
+                fail(file, "'" + at + "': " + e.what());
+            }
+        }
+        track.keys.push_back(key);
+    }
+    return track;
+}
+
+// The scene file's "animation": its frame range and rate.
+AnimationRange parse_animation(const std::string& file, const json& j) {
+    check_keys(file, "animation", j, {"first", "last", "fps"});
+    AnimationRange r;
+    const auto frame = [&](const char* key) {
+        if (!j.contains(key)) fail(file, std::string("'animation' needs '") + key + "'");
+        const json& v = j[key];
+        if (!v.is_number_integer() || v.get<long long>() < -(1LL << 30) || v.get<long long>() > (1LL << 30))
+            fail(file, std::string("'animation.") + key + "' must be an integer frame number, got " + v.dump());
+        return int(v.get<long long>());
+    };
+    r.first = frame("first"), r.last = frame("last");
+    if (r.last < r.first)
+        fail(file, "'animation.last' (" + std::to_string(r.last) + ") comes before 'animation.first' (" +
+                       std::to_string(r.first) + ")");
+    if (j.contains("fps")) {
+        r.fps = get_number(file, j["fps"], "animation.fps");
+        if (!(r.fps > 0.0) || !std::isfinite(r.fps)) fail(file, "'animation.fps' must be positive");
+    }
     return r;
 }
 
@@ -539,7 +694,8 @@ static SceneFile load_scene_file_impl(const std::string& path) {
         throw InputError(path + ": is a directory, not a scene file" + hint);
     }
     json j = parse_json_file(path);
-    check_keys(path, "the scene", j, {"camera", "meshes", "materials", "render", "description", "environment"});
+    check_keys(path, "the scene", j,
+               {"camera", "meshes", "materials", "render", "description", "environment", "animation"});
     if (!j.contains("camera")) fail(path, "missing 'camera'");
     if (!j.contains("meshes") || !j["meshes"].is_array() || j["meshes"].empty())
         fail(path, "'meshes' must be a non-empty array");
@@ -547,7 +703,21 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     SceneFile sf;
     sf.path = path;
     std::vector<std::string> inputs{path};
-    const CameraDesc cd = parse_camera(path, j["camera"], inputs);
+    // Keyframes (animation.h) come apart from the camera's fixed description.
+    std::optional<AnimationRange> range;
+    if (j.contains("animation")) range = parse_animation(path, j["animation"]);
+    json camera_json = j["camera"];
+    CameraTrack camera_track;
+    if (camera_json.is_object() && camera_json.contains("keys")) {
+        // The keys set the pose; a pose beside them would be silently ignored.
+        for (const char* k : {"position", "target", "up"})
+            if (camera_json.contains(k))
+                fail(path, std::string("'camera.") + k + "' is ignored when 'camera.keys' give the pose; remove it or "
+                           "put it into the keys");
+        camera_track = parse_camera_keys(path, camera_json["keys"]);
+        camera_json.erase("keys");
+    }
+    const CameraDesc cd = parse_camera(path, camera_json, inputs);
     Camera camera;
     try {
         camera = Camera(cd);
@@ -573,14 +743,21 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     std::vector<Material> materials;
     std::set<std::string> used;
     const fs::path dir = fs::path(path).parent_path();
+    std::vector<TransformTrack> tracks;
+    bool any_keys = !camera_track.empty();
     for (const auto& m : j["meshes"]) {
         const size_t first = mesh.size();
+        const std::string where = "meshes[" + std::to_string(tracks.size()) + "]";
         std::string file;
         if (m.is_string()) {
             file = (dir / m.get<std::string>()).string();
             load_obj_impl(file, Mat4(1.f), mesh, materials, &overrides, path, &used, "", &inputs);
         } else {
-            check_keys(path, "meshes[]", m, {"file", "transform", "mtl"});
+            check_keys(path, "meshes[]", m, {"file", "transform", "mtl", "keys"});
+            if (m.contains("keys")) {
+                tracks.push_back(parse_object_keys(path, where + ".keys", m["keys"]));
+                any_keys = true;
+            }
             if (!m.contains("file") || !m["file"].is_string()) fail(path, "every mesh needs a 'file'");
             if (m.contains("mtl") && !m["mtl"].is_string()) fail(path, "'meshes[].mtl' must be a string");
             const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
@@ -588,6 +765,8 @@ static SceneFile load_scene_file_impl(const std::string& path) {
             file = (dir / m["file"].get<std::string>()).string();
             load_obj_impl(file, xf, mesh, materials, &overrides, path, &used, mtl, &inputs);
         }
+        if (tracks.size() == sf.meshes.size()) tracks.emplace_back();
+        mesh.object_ids.resize(mesh.size(), uint32_t(sf.meshes.size()));
         MeshStats ms{file, mesh.size() - first, 0};
         for (size_t t = first; t < mesh.size(); ++t) {
             const Vec3* p = &mesh.positions[3 * t];
@@ -622,8 +801,33 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     }
     std::shared_ptr<Environment> env;
     if (j.contains("environment")) env = parse_environment(path, j["environment"], inputs);
-    sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
-    if (env) sf.scene->set_environment(std::move(env));
+    if (any_keys && !range)
+        fail(path, "the scene has keys but no 'animation' block giving its frames ({\"first\": 0, \"last\": 47, "
+                   "\"fps\": 24})");
+    if (range) {
+        // Every entry becomes an object of its own, with its motion.
+        std::vector<AnimatedObject> objects;
+        size_t t0 = 0;
+        for (size_t i = 0; i < sf.meshes.size(); ++i) {
+            AnimatedObject o;
+            o.name = sf.meshes[i].file;
+            o.track = std::move(tracks[i]);
+            const size_t n = sf.meshes[i].triangles;
+            o.mesh.positions.assign(mesh.positions.begin() + 3 * t0, mesh.positions.begin() + 3 * (t0 + n));
+            o.mesh.normals.assign(mesh.normals.begin() + 3 * t0, mesh.normals.begin() + 3 * (t0 + n));
+            o.mesh.uvs.assign(mesh.uvs.begin() + 3 * t0, mesh.uvs.begin() + 3 * (t0 + n));
+            o.mesh.material_ids.assign(mesh.material_ids.begin() + t0, mesh.material_ids.begin() + (t0 + n));
+            objects.push_back(std::move(o));
+            t0 += n;
+        }
+        sf.animation = std::make_shared<AnimatedScene>(std::move(objects), std::move(materials), cd,
+                                                       std::move(camera_track), env, *range, path);
+        sf.scene = sf.animation->scene_at(range->first);
+        sf.frame = range->first;
+    } else {
+        sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
+        if (env) sf.scene->set_environment(std::move(env));
+    }
     // A file used twice (one OBJ under two transforms, a shared texture) is hashed once.
     std::set<std::string> seen;
     for (std::string& f : inputs)
@@ -666,6 +870,21 @@ void set_resolution(SceneFile& sf, int width, int height) {
     if (height == 0) height = aspect_side(width, d.width, d.height);
     d.width = width, d.height = height;
     sf.scene->set_camera(Camera(d));
+    if (sf.animation) sf.animation->set_camera_optics(d);  // every later frame too
+}
+
+void set_frame(SceneFile& sf, int frame) {
+    if (!sf.scene) throw ParameterError("set_frame: no scene is loaded");
+    if (!sf.animation)
+        throw InputError(sf.path + ": has no 'animation' block, so it has no frame " + std::to_string(frame));
+    const AnimationRange& r = sf.animation->range();
+    if (frame < r.first || frame > r.last)
+        throw ParameterError(fmt::format("frame {} is outside the animation of {} (frames {} to {})", frame, sf.path,
+                                         r.first, r.last));
+    // The optics chosen after loading (--resolution, --set fov) carry over.
+    sf.animation->set_camera_optics(sf.scene->camera().desc());
+    sf.scene = sf.animation->scene_at(frame);
+    sf.frame = frame;
 }
 
 void set_fov(SceneFile& sf, float fov_deg, char axis) {
@@ -676,6 +895,7 @@ void set_fov(SceneFile& sf, float fov_deg, char axis) {
     d.fov_deg = fov_deg;
     if (axis) d.fov_axis = axis;
     sf.scene->set_camera(Camera(d));  // rejects an angle outside (0, 180)
+    if (sf.animation) sf.animation->set_camera_optics(d);  // every later frame too
 }
 
 }  // namespace gdr

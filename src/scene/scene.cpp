@@ -1,6 +1,7 @@
 #include "gdr/scene/scene.h"
 
 #include <algorithm>
+#include <mutex>
 
 #include <embree3/rtcore.h>
 #ifdef GDR_SIMD
@@ -32,9 +33,58 @@ void alpha_filter(const RTCFilterFunctionNArguments* args) {
             args->valid[i] = 0;
     }
 }
+// A new triangle geometry on `dev` holding triangles [first, first + count) of
+// `m`; throws RuntimeFailure naming `origin` if Embree cannot allocate it.
+RTCGeometry triangle_geometry(RTCDevice dev, const TriangleMesh& m, size_t first, size_t count,
+                              const std::string& last_error, const std::string& origin) {
+    RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* verts = static_cast<float*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * count));
+    auto* idx = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), count));
+    if (!verts || !idx) {
+        rtcReleaseGeometry(geom);
+        throw RuntimeFailure(origin + ": " + (last_error.empty() ? "Embree buffer allocation failed" : last_error));
+    }
+    for (size_t i = 0; i < 3 * count; ++i) {
+        const Vec3& p = m.positions[3 * first + i];
+        verts[3 * i + 0] = p.x, verts[3 * i + 1] = p.y, verts[3 * i + 2] = p.z;
+        idx[i] = uint32_t(i);
+    }
+    return geom;
+}
 }  // namespace
 
-Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin)
+SharedGeometry::SharedGeometry(const TriangleMesh& mesh, const std::string& origin) : triangles_(mesh.size()) {
+    if (mesh.positions.size() != 3 * mesh.size() || mesh.size() == 0)
+        throw InputError(origin + ": shared geometry needs three positions per triangle, and a triangle");
+    for (size_t t = 0; t < mesh.size(); ++t) {
+        const Vec3* p = &mesh.positions[3 * t];
+        if (!is_finite(p[0]) || !is_finite(p[1]) || !is_finite(p[2]) || zero_area_triangle(p[0], p[1], p[2]))
+            throw InputError(origin + ": shared triangle " + std::to_string(t) + " is degenerate or not finite");
+    }
+    RTCDevice dev = rtcNewDevice("threads=0");
+    if (!dev) throw RuntimeFailure("cannot create an Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+    device_ = dev;
+    rtcSetDeviceErrorFunction(dev, embree_error, &last_error_);
+    RTCScene scene = rtcNewScene(dev);
+    scene_ = scene;
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+    RTCGeometry geom = triangle_geometry(dev, mesh, 0, mesh.size(), last_error_, origin);
+    rtcCommitGeometry(geom);
+    rtcAttachGeometry(scene, geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(scene);
+    if (!last_error_.empty()) throw RuntimeFailure(origin + ": " + last_error_);
+}
+
+SharedGeometry::~SharedGeometry() {
+    if (scene_) rtcReleaseScene(static_cast<RTCScene>(scene_));
+    if (device_) rtcReleaseDevice(static_cast<RTCDevice>(device_));
+}
+
+Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin,
+             std::shared_ptr<SharedGeometry> shared)
     : materials_(std::move(materials)), camera_(camera) {
     for (Material& mat : materials_) {
         if (!mat.bsdf) throw InputError(origin + ": material '" + mat.name + "' has no BSDF");
@@ -55,6 +105,8 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         throw InputError(origin + ": a mesh's normals, if any, must match its positions one to one" + sizes());
     if (!mesh.uvs.empty() && mesh.uvs.size() != mesh.positions.size())
         throw InputError(origin + ": a mesh's uvs, if any, must match its positions one to one" + sizes());
+    if (!mesh.object_ids.empty() && mesh.object_ids.size() != mesh.material_ids.size())
+        throw InputError(origin + ": a mesh's object ids, if any, must match its material ids one to one" + sizes());
     // Validate and compact: non-finite vertices are an error, zero-area triangles are dropped.
     TriangleMesh m;
     const bool has_n = !mesh.normals.empty(), has_uv = !mesh.uvs.empty();
@@ -82,6 +134,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
             if (has_uv) m.uvs.push_back(is_finite(Vec3(mesh.uvs[3 * t + k], 0.f)) ? mesh.uvs[3 * t + k] : Vec2(0.f));
         }
         m.material_ids.push_back(mesh.material_ids[t]);
+        if (!mesh.object_ids.empty()) m.object_ids.push_back(mesh.object_ids[t]);
     }
     if (m.size() == 0) throw InputError(origin + ": the scene has no (non-degenerate) triangles");
     mesh_ = std::move(m);
@@ -92,44 +145,48 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     radius_ = std::max(1e-3f, 0.5f * glm::length(hi - lo));
     center_ = 0.5f * (lo + hi);
 
-    static thread_local std::string last_error;
-    last_error.clear();
-    RTCDevice dev = rtcNewDevice("threads=0");
-    if (!dev) throw RuntimeFailure("cannot create an Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
-    rtc_device_ = dev;
-    rtcSetDeviceErrorFunction(dev, embree_error, &last_error);
-    // An Embree built without ray packets (EMBREE_RAY_PACKETS off) rejects
-    // rtcIntersect4/8; intersect4() then traces its rays one by one.
-    packets4_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
-    packets8_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) != 0;
-    RTCScene scene = rtcNewScene(dev);
-    rtc_scene_ = scene;
-    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                              3 * sizeof(float), mesh_.positions.size()));
-    auto* idx = static_cast<uint32_t*>(
-        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), mesh_.size()));
-    if (!verts || !idx) {
+    if (shared) {
+        build_on_shared(std::move(shared), origin);
+    } else {
+        static thread_local std::string last_error;
+        last_error.clear();
+        RTCDevice dev = rtcNewDevice("threads=0");
+        if (!dev) throw RuntimeFailure("cannot create an Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+        rtc_device_ = dev;
+        rtcSetDeviceErrorFunction(dev, embree_error, &last_error);
+        // An Embree built without ray packets (EMBREE_RAY_PACKETS off) rejects
+        // rtcIntersect4/8; intersect4() then traces its rays one by one.
+        packets4_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
+        packets8_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) != 0;
+        RTCScene scene = rtcNewScene(dev);
+        rtc_scene_ = scene;
+        rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+        RTCGeometry geom = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_TRIANGLE);
+        auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                                  3 * sizeof(float), mesh_.positions.size()));
+        auto* idx = static_cast<uint32_t*>(
+            rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), mesh_.size()));
+        if (!verts || !idx) {
+            rtcReleaseGeometry(geom);
+            throw RuntimeFailure(origin + ": " + (last_error.empty() ? "Embree buffer allocation failed" : last_error));
+        }
+        for (size_t i = 0; i < mesh_.positions.size(); ++i) {
+            verts[3 * i + 0] = mesh_.positions[i].x;
+            verts[3 * i + 1] = mesh_.positions[i].y;
+            verts[3 * i + 2] = mesh_.positions[i].z;
+            idx[i] = uint32_t(i);
+        }
+        if (std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.opacity != nullptr; })) {
+            rtcSetGeometryUserData(geom, this);
+            rtcSetGeometryIntersectFilterFunction(geom, alpha_filter);
+            rtcSetGeometryOccludedFilterFunction(geom, alpha_filter);
+        }
+        rtcCommitGeometry(geom);
+        rtcAttachGeometry(scene, geom);
         rtcReleaseGeometry(geom);
-        throw RuntimeFailure(origin + ": " + (last_error.empty() ? "Embree buffer allocation failed" : last_error));
+        rtcCommitScene(scene);
+        if (!last_error.empty()) throw RuntimeFailure(origin + ": " + last_error);
     }
-    for (size_t i = 0; i < mesh_.positions.size(); ++i) {
-        verts[3 * i + 0] = mesh_.positions[i].x;
-        verts[3 * i + 1] = mesh_.positions[i].y;
-        verts[3 * i + 2] = mesh_.positions[i].z;
-        idx[i] = uint32_t(i);
-    }
-    if (std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.opacity != nullptr; })) {
-        rtcSetGeometryUserData(geom, this);
-        rtcSetGeometryIntersectFilterFunction(geom, alpha_filter);
-        rtcSetGeometryOccludedFilterFunction(geom, alpha_filter);
-    }
-    rtcCommitGeometry(geom);
-    rtcAttachGeometry(scene, geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(scene);
-    if (!last_error.empty()) throw RuntimeFailure(origin + ": " + last_error);
 
     hit_info_.resize(mesh_.size());
     for (size_t t = 0; t < mesh_.size(); ++t) {
@@ -160,6 +217,44 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         }
     }
     build_lights();
+}
+
+void Scene::build_on_shared(std::shared_ptr<SharedGeometry> shared, const std::string& origin) {
+    if (std::any_of(materials_.begin(), materials_.end(), [](const Material& m) { return m.opacity != nullptr; }))
+        throw ParameterError(origin + ": alpha cut-outs need a scene of its own, not shared geometry");
+    if (shared->triangles_ > mesh_.size())
+        throw ParameterError(origin + ": the shared geometry has more triangles than the scene");
+    // Embree calls on one device from several threads would share its error string.
+    std::lock_guard<std::mutex> lock(shared->mutex_);
+    shared->last_error_.clear();
+    RTCDevice dev = static_cast<RTCDevice>(shared->device_);
+    rtcRetainDevice(dev);
+    rtc_device_ = dev;
+    packets4_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY4_SUPPORTED) != 0;
+    packets8_ = rtcGetDeviceProperty(dev, RTC_DEVICE_PROPERTY_NATIVE_RAY8_SUPPORTED) != 0;
+    RTCScene scene = rtcNewScene(dev);
+    rtc_scene_ = scene;
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+    // The shared triangles, in place (an identity instance: its hits' normals
+    // are in world space), then the rest as a geometry of this scene's own.
+    RTCGeometry inst = rtcNewGeometry(dev, RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(inst, static_cast<RTCScene>(shared->scene_));
+    const float identity[12] = {1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f};
+    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+    rtcCommitGeometry(inst);
+    rtcAttachGeometry(scene, inst);
+    rtcReleaseGeometry(inst);
+    const size_t base = shared->triangles_;
+    if (mesh_.size() > base) {
+        RTCGeometry geom = triangle_geometry(dev, mesh_, base, mesh_.size() - base, shared->last_error_, origin);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometry(scene, geom);
+        rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene);
+    if (!shared->last_error_.empty()) throw RuntimeFailure(origin + ": " + shared->last_error_);
+    unshared_base_ = uint32_t(base);
+    shared_ = std::move(shared);
 }
 
 Scene::~Scene() {
@@ -243,7 +338,8 @@ bool Scene::intersect(const Ray& ray, SurfaceInteraction& si) const {
     rtcIntersect1(static_cast<RTCScene>(rtc_scene_), &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
 
-    fill_hit(ray, rh.hit.primID, rh.hit.u, rh.hit.v, Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.ray.tfar, si);
+    fill_hit(ray, global_prim(rh.hit.primID, rh.hit.instID[0]), rh.hit.u, rh.hit.v,
+             Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z), rh.ray.tfar, si);
     return true;
 }
 
@@ -321,13 +417,13 @@ void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInterac
     for (int i = 0; i < N; ++i) {
         hit[i] = active[i] && rh.hit.geomID[i] != RTC_INVALID_GEOMETRY_ID;
         if (!hit[i]) continue;
-        const uint32_t prim = rh.hit.primID[i];
+        const uint32_t prim = global_prim(rh.hit.primID[i], rh.hit.instID[0][i]);
         // Coherent rays often hit one triangle: a flat one's normal and frame
         // (a square root and two divisions) are then copied from an earlier lane.
         int same = -1;
         if (!(hit_info_[prim] & kSmooth))
             for (int j = 0; j < i && same < 0; ++j)
-                if (hit[j] && rh.hit.primID[j] == prim) same = j;
+                if (hit[j] && global_prim(rh.hit.primID[j], rh.hit.instID[0][j]) == prim) same = j;
         if (same >= 0)
             fill_hit_like(rays[i], rh.hit.u[i], rh.hit.v[i], rh.ray.tfar[i], *si[same], *si[i]);
         else

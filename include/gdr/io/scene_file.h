@@ -10,8 +10,16 @@
 //                 "transform": {"scale": 1, "rotate": [0,1,0,90], "translate": [0,0,0]}}],
 //        (transform may instead be {"matrix": [16 numbers, row-major]})
 //     "materials": {"sphere": {"type": "roughconductor", "ks": [0.9,0.9,0.9], "alpha": 0.1}},
-//     "render": {"integrator": "pt", "spp": 64, "seed": 0, "params": {"max_depth": 16}}
+//     "render": {"integrator": "pt", "spp": 64, "seed": 0, "params": {"max_depth": 16}},
+//     "animation": {"first": 0, "last": 47, "fps": 24}
 //   }
+//
+// Animation (gdr/scene/animation.h): with an "animation" block, a mesh entry
+// may hold "keys": [{"frame": 0, "translate": [x,y,z], "rotate": [ax,ay,az,deg]
+// or "quaternion": [w,x,y,z], "scale": s or [sx,sy,sz]}, ...], applied after
+// its "transform", and the camera "keys": [{"frame": 0, "position", "target",
+// "up"} or {"frame": 0, "matrix": [16 numbers, row-major camera-to-world]}].
+// Frames strictly increase and may be fractional.
 #pragma once
 
 #include <cstddef>
@@ -21,6 +29,7 @@
 #include <vector>
 
 #include "gdr/core/params.h"
+#include "gdr/scene/animated_scene.h"
 #include "gdr/scene/scene.h"
 
 namespace gdr {
@@ -57,6 +66,11 @@ struct SceneFile {
     /// Approximations made and elements skipped while loading (Mitsuba XML),
     /// one line each, naming the file and line; empty for JSON scene files.
     std::vector<std::string> warnings;
+    /// The scene at every frame, for a file with an `animation` block; null
+    /// for a still scene. `scene` is then its frame `frame`.
+    std::shared_ptr<AnimatedScene> animation;
+    /// The frame `scene` shows (animation->range().first after loading); 0 for a still scene.
+    int frame = 0;
 };
 
 /// Options of load_scene_file that only Mitsuba XML scenes take.
@@ -89,13 +103,19 @@ std::string scene_content_hash(const std::string& scene_path, const std::vector<
 /// orientation and field of view along its fov_axis. 0 for one side keeps the
 /// camera's aspect ratio (that side rounded to the nearest pixel, at least 1).
 /// Throws ParameterError for a negative side, both sides 0, or a resolution the
-/// camera rejects.
+/// camera rejects. An animation's later frames (set_frame, scene_at) get it too.
 void set_resolution(SceneFile& sf, int width, int height);
+
+/// Replaces sf.scene by the animation's frame `frame` (time t = frame, an
+/// instant: no motion blur), keeping the camera's resolution and field of
+/// view. Throws InputError for a still scene, ParameterError for a frame
+/// outside the animation's range.
+void set_frame(SceneFile& sf, int frame);
 
 /// Rebuilds the scene's camera with a full field of view of `fov_deg` degrees,
 /// in (0, 180), along `axis`: 'x' horizontal, 'y' vertical, 0 the camera's own
 /// fov_axis. The resolution is kept. Throws ParameterError for an angle or axis
-/// out of range.
+/// out of range. An animation's later frames get it too.
 void set_fov(SceneFile& sf, float fov_deg, char axis = 0);
 
 /// Loads one OBJ (+ MTL) into `mesh` and `materials`, applying a 4x4 transform;

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,9 @@ struct TriangleMesh {
     std::vector<Vec3> normals;          ///< 3 per triangle, or empty (flat shading).
     std::vector<Vec2> uvs;              ///< 3 per triangle, or empty.
     std::vector<uint32_t> material_ids; ///< 1 per triangle, index into Scene materials.
+    /// 1 per triangle, or empty (every triangle object 0): the scene-file
+    /// mesh entry it came from, which temporal methods match across frames.
+    std::vector<uint32_t> object_ids;
     /// Number of triangles.
     size_t size() const { return material_ids.size(); }
 };
@@ -120,12 +124,40 @@ struct VisibilityBatch {
     }
 };
 
+/// A BVH over triangles that several Scenes share: the geometry that stays
+/// put in every frame of an animation, built once. Each frame's Scene refers
+/// to it through an Embree instance (an identity transform, so its hits need
+/// no transformation) and builds a BVH only over its other triangles.
+class SharedGeometry {
+public:
+    /// Builds the BVH over `mesh`'s triangles (world space), which must be
+    /// finite and of non-zero area (InputError naming `origin` otherwise).
+    SharedGeometry(const TriangleMesh& mesh, const std::string& origin);
+    ~SharedGeometry();
+    SharedGeometry(const SharedGeometry&) = delete;
+    SharedGeometry& operator=(const SharedGeometry&) = delete;
+    /// Number of triangles it holds.
+    size_t triangles() const { return triangles_; }
+
+private:
+    friend class Scene;
+    void* device_ = nullptr;  // RTCDevice, shared with every Scene built on it
+    void* scene_ = nullptr;   // RTCScene of the triangles
+    size_t triangles_ = 0;
+    std::mutex mutex_;        // Scenes are built on the device one at a time
+    std::string last_error_;  // the device's last error message
+};
+
 /// An immutable, thread-safe scene for intersection and light sampling.
 class Scene {
 public:
     /// Builds the BVH; throws InputError if the mesh is empty or holds non-finite
     /// vertices, RuntimeFailure on an Embree error. `origin` names the source for messages.
-    Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin);
+    /// With `shared`, the mesh's first shared->triangles() triangles must be
+    /// exactly the shared ones: only the rest get a BVH of their own (no
+    /// alpha cut-outs then: ParameterError).
+    Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin,
+          std::shared_ptr<SharedGeometry> shared = nullptr);
     ~Scene();
     Scene(const Scene&) = delete;
     Scene& operator=(const Scene&) = delete;
@@ -220,6 +252,8 @@ public:
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
     const TriangleMesh& mesh() const { return mesh_; }                    ///< The geometry.
+    /// Object id (scene-file mesh entry index) of triangle `prim`, e.g. of a hit's SurfaceInteraction::prim.
+    uint32_t object_id(uint32_t prim) const { return mesh_.object_ids.empty() ? 0u : mesh_.object_ids[prim]; }
     const SceneStats& stats() const { return stats_; }                    ///< Load counters.
     /// Radius of a sphere around the scene's bounds centre that holds it (scene units).
     float bounding_radius() const { return radius_; }
@@ -310,10 +344,17 @@ private:
     RayObserver* observer_ = nullptr;
     bool packets4_ = false;  // Embree traces 4-ray packets natively
     bool packets8_ = false;  // ... and 8-ray packets
+    // Triangle index of Embree's hit: the shared triangles come first (hits
+    // inside the instance), this scene's own after them (hits outside it);
+    // 0 without shared geometry, where every hit is outside an instance.
+    uint32_t unshared_base_ = 0;
+    uint32_t global_prim(uint32_t prim, uint32_t inst) const { return prim + (inst == ~0u ? unshared_base_ : 0u); }
     // The environment's members come last: the ray and light-sample paths'
     // members keep their places (and cache lines).
     Vec3 center_{0.f};
     std::shared_ptr<const Environment> env_;  // see set_environment()
+    std::shared_ptr<SharedGeometry> shared_;  // kept alive while its instance is in use
+    void build_on_shared(std::shared_ptr<SharedGeometry> shared, const std::string& origin);
     float env_select_ = 0.f;                  // environment_selection()
     // sample_light()'s environment branch, u_sel already tested.
     LightSample sample_environment(const Vec3& ref, const Vec2& u) const;

@@ -89,6 +89,7 @@ struct RenderIdentity {
     int height = 0;          ///< Rows (pixels).
     std::string scene;       ///< Absolute path of the scene file.
     std::string scene_hash;  ///< Content hash of the scene and every file it loads ("" if unknown).
+    std::string frame;       ///< Frame number of an animation's frame ("" for a still image).
 };
 
 /// The identity stored in a render file.
