@@ -289,7 +289,8 @@ TEST_CASE("temporal: CG with motion and a mask equals a dense solve of the energ
 }
 
 TEST_CASE("temporal: L2 of noisy unbiased inputs is unbiased", "[temporal][statistical]") {
-    // Truth down to 0.02 so that a biased variant (e.g. clamping at zero) shows.
+    // Truth from about -0.45 to 1.2, so that a biased variant (clamping negative
+    // results at zero, as a renderer might) shows.
     const int w = 14, h = 10, C = 3, F = 5, runs = 200;
     const auto truth = truth_video(w, h, C, F, kShift, 0.05f, -0.5f);
     const auto exact = exact_frames(truth, kShift, true);
