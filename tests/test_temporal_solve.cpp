@@ -232,6 +232,17 @@ TEST_CASE("temporal: exact inputs give back the video by DCT, CG and IRLS", "[te
     }
 }
 
+TEST_CASE("temporal: exact inputs on tiny frames and one-frame windows", "[temporal]") {
+    for (auto [w, h, F] : {std::tuple{1, 1, 3}, std::tuple{1, 9, 4}, std::tuple{9, 1, 4}, std::tuple{5, 4, 1}}) {
+        const auto truth = truth_video(w, h, 2, F, Motion{});
+        const auto frames = exact_frames(truth, Motion{}, false);
+        INFO(w << "x" << h << ", " << F << " frames");
+        CHECK(rel_error(solve(frames, l2_options()), truth) < 1e-5);
+        CHECK(rel_error(solve(frames, l2_options(TemporalSolver::cg)), truth) < 1e-5);
+        CHECK(rel_error(solve(frames, TemporalOptions{}), truth) < 1e-5);
+    }
+}
+
 TEST_CASE("temporal: the 3-D DCT solve equals CG on the same motion-free problem", "[temporal]") {
     const int w = 31, h = 20, C = 3, F = 7;
     auto frames = exact_frames(truth_video(w, h, C, F, Motion{}), Motion{}, false);
