@@ -564,6 +564,22 @@ TEST_CASE("temporal: bad input names the frame, the layer and the pixel", "[temp
     CHECK_THAT(message([&] { temporal_options(p); }), Contains("windw"));
 }
 
+TEST_CASE("temporal options round-trip through parameters", "[temporal]") {
+    TemporalOptions o;
+    o.alpha = 0.3, o.w_t = 2.5, o.norm = TemporalNorm::l2, o.solver = TemporalSolver::cg;
+    o.l2_preconditioner = TemporalPreconditioner::none, o.irls_preconditioner = TemporalPreconditioner::dct;
+    o.window = 8, o.step = 3, o.require_dt = false, o.eps_factor = 0.25;
+    Params p("header");
+    std::string text = describe(o);
+    for (size_t at = 0; at < text.size();) {
+        const size_t end = text.find('\n', at);
+        p.set_from_text(text.substr(at, end - at));
+        at = end + 1;
+    }
+    CHECK(describe(temporal_options(p)) == text);
+    CHECK(describe(temporal_options(Params())) == describe(TemporalOptions{}));
+}
+
 TEST_CASE("temporal: frame files are read, reconstructed and written, never over an input", "[temporal][files]") {
     namespace fs = std::filesystem;
     const fs::path dir = fs::temp_directory_path() / ("gdr-temporal-" + std::to_string(::getpid()));

@@ -56,10 +56,16 @@ TemporalOptions temporal_options(const Params& p) {
     o.norm = p.get_choice("norm", "l1", {"l1", "l2"}) == "l1" ? TemporalNorm::l1 : TemporalNorm::l2;
     const std::string solver = p.get_choice("solver", "auto", {"auto", "dct", "cg"});
     o.solver = solver == "auto" ? TemporalSolver::automatic : solver == "dct" ? TemporalSolver::dct : TemporalSolver::cg;
-    const std::string pre = p.get_choice("preconditioner", "dct", {"dct", "multigrid", "none"});
-    o.l2_preconditioner = pre == "dct"         ? TemporalPreconditioner::dct
-                          : pre == "multigrid" ? TemporalPreconditioner::frame_multigrid
-                                               : TemporalPreconditioner::none;
+    auto preconditioner = [&](const char* key, const char* def) {
+        const std::string v = p.get_choice(key, def, {"dct", "multigrid", "none"});
+        return v == "dct" ? TemporalPreconditioner::dct
+               : v == "multigrid" ? TemporalPreconditioner::frame_multigrid
+                                  : TemporalPreconditioner::none;
+    };
+    o.l2_preconditioner = preconditioner("preconditioner", "dct");
+    o.irls_preconditioner = preconditioner("irls_preconditioner", "multigrid");
+    o.eps_initial = p.get_real("eps_initial", o.eps_initial);
+    o.eps_factor = p.get_real("eps_factor", o.eps_factor);
     auto integer = [&](const char* key, int def, long long lo, long long hi) {
         const long long v = p.get_int(key, def);
         if (v < lo || v > hi)
@@ -87,13 +93,15 @@ TemporalOptions temporal_options(const Params& p) {
 std::string describe(const TemporalOptions& o) {
     std::ostringstream os;
     os.precision(17);
-    const char* pre = o.l2_preconditioner == TemporalPreconditioner::dct         ? "dct"
-                      : o.l2_preconditioner == TemporalPreconditioner::frame_multigrid ? "multigrid"
-                                                                                   : "none";
+    auto name = [](TemporalPreconditioner k) {
+        return k == TemporalPreconditioner::dct ? "dct" : k == TemporalPreconditioner::frame_multigrid ? "multigrid" : "none";
+    };
     const char* solver = o.solver == TemporalSolver::automatic ? "auto" : o.solver == TemporalSolver::dct ? "dct" : "cg";
-    os << "alpha=" << o.alpha << "\ncg_iterations=" << o.cg_iterations << "\nirls_cg_iterations="
-       << o.irls_cg_iterations << "\nirls_tolerance=" << o.irls_tolerance << "\niterations=" << o.irls_iterations
-       << "\nnorm=" << (o.norm == TemporalNorm::l1 ? "l1" : "l2") << "\npreconditioner=" << pre
+    os << "alpha=" << o.alpha << "\ncg_iterations=" << o.cg_iterations << "\neps_factor=" << o.eps_factor
+       << "\neps_initial=" << o.eps_initial << "\nirls_cg_iterations=" << o.irls_cg_iterations
+       << "\nirls_preconditioner=" << name(o.irls_preconditioner) << "\nirls_tolerance=" << o.irls_tolerance
+       << "\niterations=" << o.irls_iterations << "\nnorm=" << (o.norm == TemporalNorm::l1 ? "l1" : "l2")
+       << "\npreconditioner=" << name(o.l2_preconditioner)
        << "\nrequire_dt=" << (o.require_dt ? "true" : "false") << "\nsolver=" << solver << "\nstep=" << o.step
        << "\ntolerance=" << o.tolerance << "\nw_s=" << o.w_s << "\nw_t=" << o.w_t << "\nwindow=" << o.window << "\n";
     return os.str();

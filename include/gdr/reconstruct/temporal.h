@@ -113,10 +113,11 @@ struct TemporalOptions {
 void check_temporal_options(const TemporalOptions& options);
 
 /// Options from parameters ("key=value", e.g. gdr reconstruct --set): alpha,
-/// w_s, w_t, norm (l1 | l2), solver (auto | dct | cg), preconditioner
-/// (dct | multigrid | none, of the L2 solve), cg_iterations, tolerance,
-/// iterations (IRLS), irls_cg_iterations, irls_tolerance, window, step,
-/// require_dt. Unknown keys are errors (ParameterError naming the key).
+/// w_s, w_t, norm (l1 | l2), solver (auto | dct | cg), preconditioner and
+/// irls_preconditioner (dct | multigrid | none: of the L2 solve and of the
+/// IRLS steps), cg_iterations, tolerance, iterations (IRLS),
+/// irls_cg_iterations, irls_tolerance, eps_initial, eps_factor, window,
+/// step, require_dt. Unknown keys are errors (ParameterError naming the key).
 TemporalOptions temporal_options(const Params& params);
 
 /// The options as sorted "key=value" lines (for file headers), in the keys of temporal_options().
@@ -203,7 +204,7 @@ void check_temporal_frame(const TemporalFrame& frame);
 /// Streaming reconstruction of a video: frames go in one at a time with
 /// push(), finished frames come out in order with pop(). Holds at most W
 /// input frames and the running blends of at most W frames (plus the
-/// finished frames not yet popped); a window's solve needs about 9 floats
+/// finished frames not yet popped); a window's solve needs about 12 floats
 /// per value of its W frames besides.
 class TemporalReconstructor {
 public:
