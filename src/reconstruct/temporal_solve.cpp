@@ -103,10 +103,9 @@ Window make_window(const std::vector<TemporalFrameView>& frames, const TemporalO
         to_planar(W, frames[f].dy, f, W.gy);
         if (f + 1 < W.F && frames[f].dt.data) to_planar(W, frames[f].dt, f, W.gt);
     });
-    if (opt.w_t == 0) W.motion_free = true;  // no temporal rows in the energy at all
-    for (int f = 0; f + 1 < W.F; ++f) {
+    // With w_t = 0 the energy has no temporal rows at all (and is motion-free).
+    for (int f = 0; f + 1 < W.F && opt.w_t > 0; ++f) {
         const TemporalFrameView& fr = frames[f];
-        if (opt.w_t == 0) break;
         if (!fr.dt.data) {
             W.motion_free = false;
             continue;
@@ -208,9 +207,9 @@ void normal_residual(const Window& W, const float* x, bool targets, std::vector<
 }
 
 /// A preconditioner z = M^-1 r of the current operator weights.
-class Preconditioner3 {
+class WindowPreconditioner {
 public:
-    Preconditioner3(Window& W, TemporalPreconditioner kind) : W_(W), kind_(kind) {
+    WindowPreconditioner(Window& W, TemporalPreconditioner kind) : W_(W), kind_(kind) {
         if (kind_ == TemporalPreconditioner::dct) setup_dct();
         if (kind_ == TemporalPreconditioner::frame_multigrid) setup_multigrid();
     }
@@ -330,7 +329,7 @@ CgResult run_pcg(Window& W, TemporalPreconditioner kind, int max_iterations, dou
     CgResult res;
     const double r0 = total(dot(W, r.data(), r.data()));
     if (!(r0 > 0) || max_iterations == 0) return res;
-    Preconditioner3 M(W, kind);
+    WindowPreconditioner M(W, kind);
     M.apply(r.data(), z.data());
     Sums rz = dot(W, r.data(), z.data());
     p = z;
@@ -455,14 +454,15 @@ TemporalReport solve_temporal_window(const std::vector<TemporalFrameView>& frame
     TemporalReport rep;
     rep.temporal_rows = W.temporal_rows;
     set_unit_weights(W);
-    std::vector<float> x(W.size(), 0.f), rhs(W.size()), flux;
+    std::vector<float> x(W.size(), 0.f), flux;
     const bool exact = W.motion_free;
     if (opt.solver == TemporalSolver::dct && !exact)
         throw ParameterError("temporal reconstruction: solver=dct needs a window without motion or dropped rows "
                              "(use solver=cg or auto)");
     if (opt.solver != TemporalSolver::cg && exact) {
+        std::vector<float> rhs(W.size());
         normal_residual(W, x.data(), true, flux, rhs.data());  // b
-        Preconditioner3 dct(W, TemporalPreconditioner::none);
+        WindowPreconditioner dct(W, TemporalPreconditioner::none);
         dct.solve_dct(rhs.data(), x.data(), W.alpha * W.alpha, W.ws * W.ws, opt.w_t == 0 ? 0.0 : W.wt * W.wt);
         rep.direct_solve = true;
     } else {
