@@ -129,9 +129,13 @@ const CommandHelp kCommands[] = {
      "samples were all taken) or missing, from the part files; and its job's state from squeue, and\n"
      "from sacct once it has ended (where Slurm keeps accounting). Says what to resubmit."},
     {"info", "gdr info FILE.exr", "Prints the layers of an EXR, their means, and the settings stored in its header."},
-    {"reconstruct", "gdr reconstruct IN.exr|NAME-primal.exr [--method NAME] [--alpha A] [--set key=value]... -o OUT.exr",
+    {"reconstruct", "gdr reconstruct IN.exr|NAME-primal.exr [--method NAME] [--alpha A] [--set key=value]... -o OUT.exr\n"
+                    "gdr reconstruct --frames 'IN.%04d.exr' FIRST:LAST [--set key=value]... -o 'OUT.%04d.exr'",
      "Reconstructs an image from a gradient-domain render's primal and gradients (gdr's layers, or the\n"
      "NAME-primal/dx/dy/direct.exr files of the Mitsuba-based implementation).\n"
+     "  --frames        a frame sequence with temporal differences (layers dt, motion_fwd, dt_valid),\n"
+     "                  solved together in Hann-blended windows (gdr/reconstruct/temporal.h; --set\n"
+     "                  takes its options, e.g. norm=l2, window=10, step=5, w_t=1)\n"
      "  --method NAME   poisson-l1 (default), poisson-l2, or any registered reconstructor (gdr list)\n"
      "  --alpha A       weight of the primal in the screened Poisson energy (default 0.2)"},
     {"compare", "gdr compare IMAGE.exr REFERENCE.exr [--layer NAME] [--ref-layer NAME] [--downsample K]\n"

@@ -6,6 +6,8 @@
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/reconstructor.h"
+#include "gdr/reconstruct/temporal.h"
+#include "frames.h"
 
 namespace gdr::cli {
 
@@ -23,15 +25,45 @@ std::string reference_prefix(const std::string& path) {
 
 }  // namespace
 
+namespace {
+
+// gdr reconstruct --frames: the spatio-temporal solve of a frame sequence (gdr/reconstruct/temporal.h).
+int reconstruct_frames(const std::string& in, const std::pair<int, int>& range, const std::string& out,
+                       const Params& params) {
+    if (!has_frame_pattern(in) || !has_frame_pattern(out))
+        throw ParameterError("reconstruct --frames: the input and -o must be frame patterns (%d, %04d), got '" + in +
+                             "' and '" + out + "'");
+    // Checked here too, so that a bad pattern is named with its option.
+    for (int f : {range.first, range.second}) (void)frame_path("IN", in, f), (void)frame_path("-o", out, f);
+    const TemporalOptions opt = temporal_options(params);
+    const FrameSequenceReport rep =
+        reconstruct_frame_sequence(in, range.first, range.second, out, opt, [](int frame, const std::string& path) {
+            fmt::print(stderr, "  frame {} -> {}\n", frame, path);
+        });
+    fmt::print(stderr, "reconstructed frames {}..{} of {} ({} windows) -> {}\n", range.first, range.second, in,
+               rep.windows.size(), out);
+    return 0;
+}
+
+}  // namespace
+
 int reconstruct(const std::vector<std::string>& args) {
     ArgReader a{args};
     std::string in, out, method = "poisson-l1";
     Params params("gdr reconstruct");
+    bool frames = false, method_set = false;
+    std::pair<int, int> range{0, 0};
     while (a.more()) {
         const std::string o = a.next();
         if (o == "-h" || o == "--help") return print_usage("reconstruct");
         if (o == "-o" || o == "--output") out = a.value(o);
-        else if (o == "--method") method = a.value(o);
+        else if (o == "--frames") {
+            // --frames IN_PATTERN A:B, as gdr compare --frames takes them.
+            if (!in.empty()) throw ParameterError("reconstruct: --frames takes the input pattern after it");
+            in = a.value(o);
+            range = parse_frame_range(o, a.value(o));
+            frames = true;
+        } else if (o == "--method") method = a.value(o), method_set = true;
         else if (o == "--alpha") params.set("alpha", a.real_value(o));
         else if (o == "--set") params.set_from_text(a.value(o));
         else if (!o.empty() && o[0] == '-') throw ParameterError("reconstruct: unknown option '" + o + "'\n" + usage("reconstruct"));
@@ -40,6 +72,12 @@ int reconstruct(const std::vector<std::string>& args) {
     }
     if (in.empty()) throw ParameterError("reconstruct: no input given\n" + usage("reconstruct"));
     if (out.empty()) throw ParameterError("reconstruct: no output given (-o OUT.exr)");
+    if (frames) {
+        if (method_set && method != "temporal")
+            throw ParameterError("reconstruct --frames: the method is the spatio-temporal solve ('temporal'), got '" +
+                                 method + "'");
+        return reconstruct_frames(in, range, out, params);
+    }
     check_output_path(out);
     {
         // The input, or every file of the reference implementation's layout.
