@@ -5,6 +5,7 @@
 
 #include <cstring>
 
+#include "bad_shifts.h"
 #include "block_stats.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
@@ -201,17 +202,6 @@ TEST_CASE("gbdpt writes gpt's layers and rejects bad parameters", "[gbdpt]") {
 }
 
 namespace {
-// A reconnection whose Jacobian forgets the cosine ratio at the vertex it reconnects to.
-struct BadReconnection {
-    static constexpr std::string_view kName = "bad-reconnection";
-    ShiftStep step(const ShiftStepInput& in) const {
-        if (in.k != 1 || !shift::can_reconnect(in)) return ShiftStep{};
-        ShiftStep s = shift::reconnect(in);
-        const Vec3 d = in.base.v[2].si.p - in.y.si.p;
-        s.jacobian /= std::max(std::abs(glm::dot(glm::normalize(d), in.base.v[2].si.ng)), 1e-3f);
-        return s;
-    }
-};
 // The built-in reconnection shift, registered from outside the library under another name.
 struct OutsideReconnection {
     static constexpr std::string_view kName = "outside-reconnection";

@@ -12,6 +12,7 @@
 #include "gdr/io/scene_file.h"
 #include "gdr/shift/steps.h"
 #include "gdr/shift/validate.h"
+#include "bad_shifts.h"
 #include "block_stats.h"
 
 using namespace gdr;
@@ -47,18 +48,6 @@ TEST_CASE("every built-in shift passes the validator", "[gpt][shift]") {
     }
 }
 
-namespace {
-struct BadReconnection {
-    static constexpr std::string_view kName = "bad-reconnection";
-    ShiftStep step(const ShiftStepInput& in) const {
-        if (in.k != 1 || !shift::can_reconnect(in)) return ShiftStep{};
-        ShiftStep s = shift::reconnect(in);
-        const Vec3 d = in.base.v[2].si.p - in.y.si.p;
-        s.jacobian /= std::max(std::abs(glm::dot(glm::normalize(d), in.base.v[2].si.ng)), 1e-3f);
-        return s;
-    }
-};
-}  // namespace
 
 TEST_CASE("validator catches a wrong Jacobian", "[gpt][shift]") {
     // A reconnection whose Jacobian forgets the cosine ratio must fail the finite-difference check.

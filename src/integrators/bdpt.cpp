@@ -29,16 +29,11 @@ public:
         mode_ = strategy_ == "all" ? Mode::All : strategy_ == "light" ? Mode::Light : Mode::One;
         if (mode_ == Mode::One) {
             // "s,t": that strategy alone, unweighted (a test of its estimator).
-            const auto comma = strategy_.find(',');
-            const auto number = [&](std::string_view v, int& out) {
-                const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), out);
-                return ec == std::errc() && end == v.data() + v.size();
-            };
-            if (comma == std::string::npos || !number(std::string_view(strategy_).substr(0, comma), only_.s) ||
-                !number(std::string_view(strategy_).substr(comma + 1), only_.t) || only_.s < 0 || only_.t < 1 ||
-                (only_.s == 1 && only_.t == 1) || only_.s + only_.t < 2)
+            const auto c = parse_connection(strategy_);
+            if (!c)
                 throw ParameterError("bdpt: strategy must be all, light, or s,t with s >= 0, t >= 1, s + t >= 2 and "
                                      "(s, t) != (1, 1), got '" + strategy_ + "'");
+            only_ = *c;
         }
         strategy_layers_ = p.get_bool("strategy_layers", false);
         batch_ = batch_param(p, "bdpt", 16);

@@ -47,6 +47,7 @@
 #include <fmt/core.h>
 #include <tbb/parallel_for.h>
 
+#include "gdr/integrators/gpt.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/connection.h"
 #include "gdr/path/dims.h"
@@ -145,33 +146,22 @@ public:
         strategy_ = p.get_string("strategy", "all");
         if (strategy_ != "all") {
             // "s,t": that strategy alone, its base and offset weighed against each other only.
-            const auto comma = strategy_.find(',');
-            const auto number = [&](std::string_view v, int& out) {
-                const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), out);
-                return ec == std::errc() && end == v.data() + v.size();
-            };
-            if (comma == std::string::npos || !number(std::string_view(strategy_).substr(0, comma), only_.s) ||
-                !number(std::string_view(strategy_).substr(comma + 1), only_.t) || only_.s < 0 || only_.t < 1 ||
-                (only_.s == 1 && only_.t == 1) || only_.s + only_.t < 3)
+            const auto c = parse_connection(strategy_, 3);
+            if (!c)
                 throw ParameterError("gbdpt: strategy must be all, or s,t with s >= 0, t >= 1, s + t >= 3 and "
                                      "(s, t) != (1, 1), got '" + strategy_ + "'");
+            only_ = *c;
             one_ = true;
         }
         batch_ = batch_param(p, "gbdpt", 16);
-        const std::string rec = p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "none"});
-        solve_weighted_ = rec == "all" || rec == "weighted";
-        solve_l1_ = rec == "all" || rec == "l1+l2" || rec == "l1";
-        solve_l2_ = rec == "all" || rec == "l1+l2" || rec == "l2";
-        rec_ = rec;
-        alpha_ = p.get_real("alpha", 0.2);
-        if (!(alpha_ > 0.0)) throw ParameterError("gbdpt: alpha must be positive");
+        recon_ = GradientReconstructions::from(p, "gbdpt");
     }
 
     std::string describe() const override {
         return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
                "\ndrop=" + fmt::format("{}", drop_) + "\nmax_depth=" + std::to_string(max_depth_) +
-               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\nreconstruct=" + rec_ +
-               "\nalpha=" + fmt::format("{}", alpha_) + "\n";
+               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\nreconstruct=" + recon_.choice +
+               "\nalpha=" + fmt::format("{}", recon_.alpha) + "\n";
     }
 
 protected:
@@ -250,33 +240,16 @@ protected:
         out.set("primal_variance", std::move(primal_var));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
-        if (acc.derived) reconstruct_layers(out, acc.spp);
+        if (acc.derived) recon_.add(out, acc.spp, "gbdpt");
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
     }
 
 public:
-    void update_merged(FrameBuffer& merged) const override { reconstruct_layers(merged, 0); }
+    void update_merged(FrameBuffer& merged) const override { recon_.add(merged, 0, "gbdpt"); }
 
 private:
-    // The reconstructions of the primal and gradients, with the directly
-    // visible emitters added back (as gpt writes them).
-    void reconstruct_layers(FrameBuffer& fb, int64_t spp) const {
-        GradientBuffers gb = gradient_buffers(fb);
-        Image spp_image;
-        if (!gb.spp && spp > 0) {
-            spp_image = Image(fb.width(), fb.height(), 1);
-            std::fill(spp_image.values().begin(), spp_image.values().end(), float(spp));
-            gb.spp = &spp_image;
-        }
-        if (solve_weighted_) fb.set("reconstruction_weighted", reconstruct("poisson-weighted", Params("gbdpt"), gb));
-        Params rp("gbdpt");
-        rp.set("alpha", alpha_);
-        if (solve_l1_) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
-        if (solve_l2_) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
-    }
-
     // Connectability of a subpath vertex for a connection (endpoints always).
     bool connectable(const Vertex& v) const {
         if (v.type != VertexType::Surface) return !v.infinite;
@@ -587,9 +560,7 @@ private:
     bool one_ = false;
     Connection only_;
     int batch_ = 16;
-    std::string rec_ = "all";
-    bool solve_weighted_ = true, solve_l1_ = true, solve_l2_ = true;
-    double alpha_ = 0.2;
+    GradientReconstructions recon_;
 };
 
 }  // namespace

@@ -245,15 +245,7 @@ public:
         trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         batch_ = batch_param(p, "gpt", kMaxBatch);
-        // The variance-weighted solve is the final image (the benchmark's
-        // best, docs/performance.md); L1 and L2 stay, the anchors' methods.
-        const std::string rec =
-            p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "none"});
-        solve_weighted_ = rec == "all" || rec == "weighted";
-        solve_l1_ = rec == "all" || rec == "l1+l2" || rec == "l1";
-        solve_l2_ = rec == "all" || rec == "l1+l2" || rec == "l2";
-        alpha_ = p.get_real("alpha", 0.2);
-        if (!(alpha_ > 0.0)) throw ParameterError("gpt: alpha must be positive");
+        recon_ = GradientReconstructions::from(p, "gpt");
         if (!(config_.threshold >= 0.f)) throw ParameterError("gpt: threshold must be >= 0");
     }
 
@@ -262,10 +254,8 @@ public:
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_vertices) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
-               "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" +
-               (solve_weighted_ ? (solve_l1_ ? "all" : "weighted")
-                                : solve_l1_ ? (solve_l2_ ? "l1+l2" : "l1") : (solve_l2_ ? "l2" : "none")) +
-               "\nalpha=" + fmt::format("{}", alpha_) + "\n";
+               "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" + recon_.choice +
+               "\nalpha=" + fmt::format("{}", recon_.alpha) + "\n";
     }
 
 protected:
@@ -385,35 +375,16 @@ protected:
         out.set("primal_variance", primal_both_ ? std::move(primal_var) : std::move(im[5]));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
-        if (acc.derived) reconstruct_layers(out, acc.spp);
+        if (acc.derived) recon_.add(out, acc.spp, "gpt");
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
     }
 
 public:
-    void update_merged(FrameBuffer& merged) const override { reconstruct_layers(merged, 0); }
+    void update_merged(FrameBuffer& merged) const override { recon_.add(merged, 0, "gpt"); }
 
 private:
-    // The reconstructions of the buffer's primal and gradients, each with the
-    // directly visible emitters added back. The weighted one reads the
-    // variances and the sample counts: `spp`, where the buffer has no spp
-    // layer yet (a render's own finalize(); TiledIntegrator adds it after).
-    void reconstruct_layers(FrameBuffer& fb, int64_t spp) const {
-        GradientBuffers gb = gradient_buffers(fb);
-        Image spp_image;
-        if (!gb.spp && spp > 0) {
-            spp_image = Image(fb.width(), fb.height(), 1);
-            std::fill(spp_image.values().begin(), spp_image.values().end(), float(spp));
-            gb.spp = &spp_image;
-        }
-        if (solve_weighted_) fb.set("reconstruction_weighted", reconstruct("poisson-weighted", Params("gpt"), gb));
-        Params rp("gpt");
-        rp.set("alpha", alpha_);
-        if (solve_l1_) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
-        if (solve_l2_) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
-    }
-
     // Most samples whose stages run in turn, and the default: 4, 8 and 16
     // ran alike on the Cornell box, about 7% less CPU time per sample than 1.
     static constexpr int kMaxBatch = 8;
@@ -473,11 +444,39 @@ private:
     WalkOptions trace_;
     bool primal_both_ = true;
     int batch_ = kMaxBatch;
-    bool solve_weighted_ = true, solve_l1_ = true, solve_l2_ = true;
-    double alpha_ = 0.2;
+    GradientReconstructions recon_;
 };
 
 }  // namespace
+
+GradientReconstructions GradientReconstructions::from(const Params& p, const std::string& who) {
+    GradientReconstructions r;
+    // The variance-weighted solve is the final image (the benchmark's
+    // best, docs/performance.md); L1 and L2 stay, the anchors' methods.
+    r.choice = p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "none"});
+    r.alpha = p.get_real("alpha", 0.2);
+    if (!(r.alpha > 0.0)) throw ParameterError(who + ": alpha must be positive");
+    return r;
+}
+
+void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::string& who) const {
+    const bool weighted = choice == "all" || choice == "weighted";
+    const bool l1 = choice == "all" || choice == "l1+l2" || choice == "l1";
+    const bool l2 = choice == "all" || choice == "l1+l2" || choice == "l2";
+    if (!weighted && !l1 && !l2) return;
+    GradientBuffers gb = gradient_buffers(fb);
+    Image spp_image;
+    if (!gb.spp && spp > 0) {
+        spp_image = Image(fb.width(), fb.height(), 1);
+        std::fill(spp_image.values().begin(), spp_image.values().end(), float(spp));
+        gb.spp = &spp_image;
+    }
+    if (weighted) fb.set("reconstruction_weighted", reconstruct("poisson-weighted", Params(who), gb));
+    Params rp(who);
+    rp.set("alpha", alpha);
+    if (l1) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
+    if (l2) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
+}
 
 void register_gpt(Registry<Integrator>& r) {
     r.add("gpt",

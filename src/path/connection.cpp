@@ -1,6 +1,7 @@
 #include "gdr/path/connection.h"
 
 #include <algorithm>
+#include <charconv>
 #include <optional>
 
 #include "gdr/path/dims.h"
@@ -84,6 +85,19 @@ double strategy_weight(const StrategySet& set, const PathDensities& d, int t) {
         if (strategy_possible(d, u)) p.push_back(r);
     }
     return mis_weight(set.heuristic, 1.0, p);
+}
+
+std::optional<Connection> parse_connection(std::string_view text, int min_vertices) {
+    const auto number = [](std::string_view v, int& out) {
+        const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), out);
+        return ec == std::errc() && end == v.data() + v.size();
+    };
+    const size_t comma = text.find(',');
+    Connection c;
+    if (comma == std::string_view::npos || !number(text.substr(0, comma), c.s) || !number(text.substr(comma + 1), c.t))
+        return std::nullopt;
+    if (c.s < 0 || c.t < 1 || (c.s == 1 && c.t == 1) || c.s + c.t < min_vertices) return std::nullopt;
+    return c;
 }
 
 void strategy_density_ratios(const PathDensities& d, int t, std::vector<double>& out) {

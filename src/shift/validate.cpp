@@ -1,4 +1,5 @@
 #include "gdr/shift/validate.h"
+#include "validate_report.h"
 
 #include <algorithm>
 #include <bit>
@@ -206,6 +207,11 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
         for (size_t k = 1; k < back.v.size(); ++k) same &= glm::length(back.v[k].y.si.p - x.v[k].si.p) <= tol;
         rep.reverse_ok += same;
     }
+    finish_report(rep, errors, o);
+    return rep;
+}
+
+void finish_report(ShiftReport& rep, std::vector<double>& errors, const ValidateOptions& o) {
     if (!errors.empty()) {
         std::sort(errors.begin(), errors.end());
         rep.jacobian_median_error = errors[errors.size() / 2];
@@ -214,7 +220,6 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
     const auto frac = [](size_t a, size_t b) { return b ? double(a) / double(b) : 1.0; };
     rep.passed = rep.base_paths > 0 && frac(rep.reverse_ok, rep.reverse_checked) >= o.required_fraction &&
                  frac(rep.jacobian_ok, rep.jacobian_checked) >= o.required_fraction;
-    return rep;
 }
 
 std::string ShiftReport::summary() const {

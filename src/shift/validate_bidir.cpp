@@ -12,6 +12,7 @@
 #include "gdr/path/environment.h"
 #include "gdr/shift/bidir.h"
 #include "gdr/shift/validate.h"
+#include "validate_report.h"
 
 namespace gdr {
 
@@ -220,14 +221,7 @@ ShiftReport validate_bidirectional_shift(const Scene& scene, const Shift& shift,
             rep.reverse_ok += glm::length(hit.p - q.si.p) <= tol;
         }
     }
-    if (!errors.empty()) {
-        std::sort(errors.begin(), errors.end());
-        rep.jacobian_median_error = errors[errors.size() / 2];
-        rep.jacobian_worst_error = errors.back();
-    }
-    const auto frac = [](size_t a, size_t b) { return b ? double(a) / double(b) : 1.0; };
-    rep.passed = rep.base_paths > 0 && frac(rep.reverse_ok, rep.reverse_checked) >= o.required_fraction &&
-                 frac(rep.jacobian_ok, rep.jacobian_checked) >= o.required_fraction;
+    finish_report(rep, errors, o);
     return rep;
 }
 

@@ -53,6 +53,21 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
 PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTerms& terms, const OffsetPath* y,
                            const GradientMis& mis, bool closed_form = true);
 
+/// The reconstructions a gradient-domain integrator (gpt, gbdpt) stores
+/// beside its primal and gradients, from its `reconstruct` and `alpha` parameters.
+struct GradientReconstructions {
+    std::string choice = "all";  ///< The `reconstruct` parameter: all, weighted, l1+l2, l1, l2 or none.
+    double alpha = 0.2;          ///< Weight of the primal in the screened Poisson energy (unitless).
+    /// Reads `reconstruct` and `alpha` for integrator `who`; throws ParameterError naming a bad one.
+    static GradientReconstructions from(const Params& p, const std::string& who);
+    /// Sets the chosen layers (reconstruction_weighted, _l1, _l2; radiance) of
+    /// fb's primal and gradients, each with the directly visible emitters
+    /// added back. The weighted one reads the variances and the sample
+    /// counts: `spp`, where fb has no spp layer yet (a render's own
+    /// finalize(); TiledIntegrator adds it after).
+    void add(FrameBuffer& fb, int64_t spp, const std::string& who) const;
+};
+
 /// Registers "gpt".
 void register_gpt(Registry<Integrator>& r);
 

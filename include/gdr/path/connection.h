@@ -9,7 +9,9 @@
 // tracing (the light subpath seen by the camera, splatted where it lands).
 #pragma once
 
+#include <optional>
 #include <span>
+#include <string_view>
 
 #include "gdr/path/mis.h"
 #include "gdr/path/subpath.h"
@@ -56,6 +58,10 @@ bool strategy_possible(const PathDensities& d, int t, int max_s = -1);
 /// (Veach 1997, section 10.2: a strategy's density over another's is a
 /// product of rev / fwd ratios, a zero density of a delta step counting as 1).
 double strategy_weight(const StrategySet& set, const PathDensities& d, int t);
+/// Parses "s,t" into a strategy with s >= 0, t >= 1, (s, t) != (1, 1) and
+/// s + t >= min_vertices; nullopt for any other text.
+std::optional<Connection> parse_connection(std::string_view text, int min_vertices = 2);
+
 /// The densities of every strategy of the path of `d` relative to strategy
 /// t's own: out[t'] = p_t'(z) / p_t(z) for t' = 1 .. n (out has n + 1
 /// entries, out[0] unused), 0 where strategy t' cannot sample the path
