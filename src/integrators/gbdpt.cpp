@@ -89,14 +89,6 @@ bool kept(const uint8_t* conn, const PathDensities& d, int t) {
     return t != 1 || (n >= 3 && conn[2]);
 }
 
-// Light tracing's raster point of light vertex q (false if the camera does not see its direction).
-bool film_point(const Scene& scene, const Vertex& eye, const Vertex& q, Vec2& film) {
-    const Vec3 d = eye.si.p - q.si.p;
-    const float dist = glm::length(d);
-    if (!(dist > 0.f)) return false;
-    return scene.camera().importance(-d / dist, film) > 0.f;
-}
-
 // The unweighted contribution of joining camera-side vertex p (radiance
 // transport) to light-side vertex q (a surface or an emitter point), visibility
 // not tested: beta_q f_q G f_p beta_p (W/(m^2 sr)).
@@ -350,13 +342,12 @@ private:
         if (!one_ && t < n && !(fx[t - 1] && fx[t] && (t != 1 || (n >= 3 && fx[2])))) return;
 
         // The base's unweighted value.
-        Vec2 film_x(0.f);
-        if (t == 1 && !film_point(scene, cam.v[0], *lend, film_x)) return;
         const ConnectionResult cx = connect(scene, light, cam, {s, t}, sampler, StrategySet{}, false, rays);
         if (t == 1 && cx.occluded) return;  // the camera does not see x_1: no camera-side shift, and f(x) = 0
         const Color vx = cx.value;
         // f(x) = 0 (visibility aside): nothing to contribute, and never paired.
         if (is_black(vx) && !cx.occluded) return;
+        const Vec2 film_x = cx.film;  // light tracing's raster point (its value is not 0 here)
         if (n == 2) {
             put(kDirect, vx);  // directly visible emitters stay out of the gradients
             return;
@@ -439,8 +430,9 @@ private:
                         if (s >= 1 && off.b == t - 2) {
                             // y_{t-1} is x_{t-1} entered from y_{t-2}: the same segment to
                             // the light side, so x's visibility is y's.
-                            vy = cx.occluded ? Color(0.f) : join(*lend, off.p.v[t - 1]);
-                            occluded_y = cx.occluded && !is_black(join(*lend, off.p.v[t - 1]));
+                            const Color v = join(*lend, off.p.v[t - 1]);
+                            vy = cx.occluded ? Color(0.f) : v;
+                            occluded_y = cx.occluded && !is_black(v);
                         } else {
                             const ConnectionResult cy =
                                 connect(scene, light, off.p, {s, t}, sampler, StrategySet{}, false, rays);

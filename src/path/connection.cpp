@@ -166,9 +166,8 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         if (is_black(r.value)) return r;
         ++rays;
         if (!scene.visible(q->si.p, q->si.ng, eye.si.p, Vec3(0.f))) {
-            const Vec2 film = r.film;
             r = {};  // every exit returns r, so it is built in the caller's slot
-            r.occluded = true, r.film = film;
+            r.occluded = true;
             return r;
         }
         r.splat = true;

@@ -116,15 +116,8 @@ CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& of
         if (nee.valid) nee.measure(v.si, r.y.wo);  // the same light point, seen from y_k
         v.bs = BsdfSample{};
         if (k + 1 < y.size()) {
-            const ShiftStep& s = r.step;
-            const bool reflect = s.wi.z * r.y.wo.z > 0.f;
-            v.bs.wi = s.wi;
-            v.bs.f = s.f;
-            v.bs.pdf = s.pdf;
-            v.bs.eta = reflect ? 1.f : x.v[k].bs.eta;
-            v.bs.lobe = (reflect ? kReflection : kTransmission) |
-                        (s.delta ? uint32_t(kSpecular) : (x.v[k].bs.lobe & (kDiffuse | kGlossy)));
-            v.delta = s.delta;
+            v.bs = step_as_sample(r.step, r.y.wo, x.v[k].bs);
+            v.delta = r.step.delta;
         }
         p.v.push_back(v);
         p.nee.push_back(nee);
@@ -209,6 +202,15 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
     }
     finish_report(rep, errors, o);
     return rep;
+}
+
+BsdfSample step_as_sample(const ShiftStep& s, const Vec3& wo, const BsdfSample& base) {
+    const bool reflect = s.wi.z * wo.z > 0.f;
+    BsdfSample b;
+    b.wi = s.wi, b.f = s.f, b.pdf = s.pdf;
+    b.eta = reflect ? 1.f : base.eta;
+    b.lobe = (reflect ? kReflection : kTransmission) | (s.delta ? uint32_t(kSpecular) : (base.lobe & (kDiffuse | kGlossy)));
+    return b;
 }
 
 void finish_report(ShiftReport& rep, std::vector<double>& errors, const ValidateOptions& o) {

@@ -68,20 +68,14 @@ std::optional<double> richardson(float eps, F&& fd) {
 
 // The camera side of offset y up to depth m, as a camera walk would have
 // recorded it: the base path of the inverse shift.
-CameraPath offset_as_base(const CameraPath& x, const CameraOffset& y, int m) {
+CameraPath offset_as_base(const CameraPath& x, const CameraOffset& y, int m, const Vec2& delta) {
     CameraPath p;
-    p.film = x.film + Vec2(1.f, 0.f);  // y is the right-hand neighbour's path
+    p.film = x.film + delta;
     for (int k = 0; k <= m; ++k) {
         Vertex v = y.p.v[size_t(k)];
         if (k >= 1 && k < m && k < y.merged) {
             const ShiftStep& s = y.steps[size_t(k)];
-            const Vec3 wo = v.si.frame.to_local(v.wo);
-            const bool reflect = s.wi.z * wo.z > 0.f;
-            v.bs = BsdfSample{};
-            v.bs.wi = s.wi, v.bs.f = s.f, v.bs.pdf = s.pdf;
-            v.bs.eta = reflect ? 1.f : x.v[size_t(k)].bs.eta;
-            v.bs.lobe = (reflect ? kReflection : kTransmission) |
-                        (s.delta ? uint32_t(kSpecular) : (x.v[size_t(k)].bs.lobe & (kDiffuse | kGlossy)));
+            v.bs = step_as_sample(s, v.si.frame.to_local(v.wo), x.v[size_t(k)].bs);
             v.delta = s.delta;
         }
         p.v.push_back(v);
@@ -159,7 +153,7 @@ ShiftReport validate_bidirectional_shift(const Scene& scene, const Shift& shift,
             }
             // Shift back from y's camera side: the camera part of x again.
             const int m = std::min(t - 1, y.size() - 1);
-            const CameraPath ybf = offset_as_base(x, y, m);
+            const CameraPath ybf = offset_as_base(x, y, m, right);
             ++rep.reverse_checked;
             shift_camera_subpath(scene, shift, config, ybf, -right, back, rays);
             if (back.size() < t || (y.b > t - 2 && back.b <= t - 2)) {

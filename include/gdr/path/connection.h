@@ -83,7 +83,7 @@ struct ConnectionResult {
     Color value{0.f};     ///< Unweighted estimate f / p of the path's measurement contribution (W/(m^2 sr)); 0 if none.
     double weight = 0.0;  ///< Its MIS weight.
     bool splat = false;   ///< t = 1: the value belongs to raster point `film`, not to the sample's pixel.
-    Vec2 film{0.f};       ///< Raster point (pixel units) of a t = 1 connection (also when occluded).
+    Vec2 film{0.f};       ///< Raster point (pixel units) of a t = 1 connection.
     /// The connection's segment was blocked (value 0): the path exists, and
     /// only this strategy samples it (every other one would trace the segment).
     bool occluded = false;

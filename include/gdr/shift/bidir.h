@@ -53,8 +53,9 @@ ShiftStep shift_onto(const Scene& scene, const Shift& shift, const ShiftConfig& 
                      const Vertex& next, const OffsetVertex& y, CameraPath& scratch);
 
 /// Light-subpath vertex q as a camera walk would have recorded it: entered
-/// from the camera-side vertex `towards`, leaving towards `away` (a sampled
-/// direction with a placeholder density: only a reconnection at q reads it).
+/// from the camera-side vertex `towards`, leaving towards `away`. Its
+/// sampled direction has density 1 (sr^-1), because a reconnection at q, the
+/// one step that reads this record, uses positions only.
 Vertex camera_side_vertex(const Vertex& q, const Vertex& towards, const Vertex& away);
 
 }  // namespace gdr
