@@ -333,6 +333,27 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         }
     }
 
+    // Seed sharing (tgpt): the next frame's seed, and which pixel of the
+    // previous frame each pixel replays; both follow from the frame alone.
+    FrameSampling frame_sampling;
+    if (frame && integrator->shares_frame_samples()) {
+        uint64_t frame_base = base_seed;
+        if (!resume_path.empty()) {
+            const auto it = previous.fb.metadata().find("frame_base_seed");
+            if (it == previous.fb.metadata().end() || it->second.empty() ||
+                it->second.find_first_not_of("0123456789") != std::string::npos || it->second.size() > 19)
+                throw InputError(resume_path + ": no valid 'frame_base_seed' entry, which a frame of " + name +
+                                 " needs");
+            frame_base = uint64_t(std::stoull(it->second));
+        }
+        const auto t_replay = std::chrono::steady_clock::now();
+        frame_sampling.next_seed = frame_seed(frame_base, *frame + 1);
+        frame_sampling.replay = replay_map(*sf.animation, *sf.scene, *frame);
+        st.frame_sampling = &frame_sampling;
+        say("seed sharing with frames {} and {} prepared in {:.3f} s\n", *frame - 1, *frame + 1,
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t_replay).count());
+    }
+
     const auto& ss = sf.scene->stats();
     say("scene {}{}: {} triangles ({} degenerate skipped), {} emitting, {}x{}, {} in {:.2f} s\n", scene_path,
         frame ? fmt::format(" frame {}", *frame) : "", ss.triangles, ss.degenerate_skipped, ss.emitters, cam.width(),

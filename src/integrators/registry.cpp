@@ -7,6 +7,7 @@
 #include "gdr/integrators/gbdpt.h"
 #include "gdr/integrators/gpt.h"
 #include "gdr/integrators/pt.h"
+#include "gdr/integrators/tgpt.h"
 
 namespace gdr {
 
@@ -15,6 +16,7 @@ void register_builtin_integrators(Registry<Integrator>& r) {
     register_gpt(r);
     register_bdpt(r);
     register_gbdpt(r);
+    register_tgpt(r);
 }
 
 Registry<Integrator>& integrator_registry() {

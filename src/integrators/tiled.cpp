@@ -146,6 +146,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                          "numbers",
                                          st.spp, st.first_sample));
     prepare(scene);
+    begin_render(scene, st);
     const int W = scene.camera().width(), H = scene.camera().height();
     const std::vector<SlotSpec> specs = slots();
     std::vector<int> offset, var_offset;  // per slot: first channel in the sums / in the squared sums (-1: none)
@@ -223,6 +224,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     const uint64_t total_samples = timed ? 0 : uint64_t(st.spp) * W * H;
 
     const int batch = std::clamp(batch_size(), 1, kMaxBatch);
+    const bool use_jobs = splatting || jobs_only();
     tbb::task_arena arena(st.threads > 0 ? st.threads : tbb::task_arena::automatic);
     long long done = 0;  // samples per pixel finished
     const auto cancelled = [&] { return st.cancel && st.cancel->load(); };
@@ -325,7 +327,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         for (long long i = first; i < first + count; ++i) {
-                            if (batch == 1 && !splatting) {
+                            if (batch == 1 && !use_jobs) {
                                 // One at a time: no job queue between the sample and its sums.
                                 std::fill(vp, vp + stride, 0.f);
                                 Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
@@ -333,7 +335,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                 add(vp, x, y, ps, pq);
                                 continue;
                             }
-                            jobs[n].x = x, jobs[n].y = y;
+                            jobs[n].x = x, jobs[n].y = y, jobs[n].index = uint32_t(i);
                             jobs[n].sampler = Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                             jobs[n].splats = splats;
                             if (++n == batch) flush();

@@ -165,6 +165,45 @@ TemporalFrame temporal_frame(const FrameBuffer& fb, const std::string& name) {
     return fr;
 }
 
+bool has_temporal_halves(const FrameBuffer& frame, const FrameBuffer& next) {
+    return frame.has(temporal_layers::primal_b) && next.has(temporal_layers::primal_a) &&
+           next.has(temporal_layers::replay);
+}
+
+void add_temporal_difference(FrameBuffer& frame, const FrameBuffer& next, const std::string& name,
+                             const std::string& next_name) {
+    const auto layer = [](const FrameBuffer& fb, const std::string& who, const char* l, int channels,
+                          const Image* like) -> const Image& {
+        if (!fb.has(l)) throw InputError("frame '" + who + "': no layer '" + l + "' (a tgpt frame has it)");
+        const Image& im = fb.get(l);
+        if (im.channels() != channels || (like && (im.width() != like->width() || im.height() != like->height())))
+            throw InputError("frame '" + who + "': layer '" + l + "' is " + shape_text(im) + ", not " +
+                             std::to_string(like ? like->width() : im.width()) + "x" +
+                             std::to_string(like ? like->height() : im.height()) + " with " +
+                             std::to_string(channels) + " channels");
+        return im;
+    };
+    const Image& b = layer(frame, name, temporal_layers::primal_b, 3, nullptr);
+    const Image& a = layer(next, next_name, temporal_layers::primal_a, 3, &b);
+    const Image& replay = layer(next, next_name, temporal_layers::replay, 2, &b);
+    const Image* motion = frame.has(temporal_layers::motion) ? &layer(frame, name, temporal_layers::motion, 2, &b)
+                                                             : nullptr;
+    const int W = b.width(), H = b.height();
+    Image dt(W, H, 3), valid(W, H, 1);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            // The same rounding as the solver's temporal rows (half away from zero).
+            const int qx = x + (motion ? int(std::lround(motion->at(x, y, 0))) : 0);
+            const int qy = y + (motion ? int(std::lround(motion->at(x, y, 1))) : 0);
+            if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
+            if (replay.at(qx, qy, 0) != float(x) || replay.at(qx, qy, 1) != float(y)) continue;
+            dt.set_rgb(x, y, a.rgb(qx, qy) - b.rgb(x, y));
+            valid.at(x, y, 0) = 1.f;
+        }
+    frame.set(temporal_layers::dt, std::move(dt));
+    frame.set(temporal_layers::valid, std::move(valid));
+}
+
 TemporalReconstructor::TemporalReconstructor(const TemporalOptions& options) : opt_(options) {
     check_temporal_options(opt_);
 }
@@ -350,10 +389,16 @@ FrameSequenceReport reconstruct_frame_sequence(const std::string& input_pattern,
             if (on_frame) on_frame(k, report.outputs.back());
         }
     };
+    // One frame ahead: a tgpt frame's dt needs the next frame's first half.
+    FrameBuffer fb = read_exr(inputs[0]);
     for (size_t i = 0; i < inputs.size(); ++i) {
-        const FrameBuffer fb = read_exr(inputs[i]);
+        FrameBuffer next;
+        if (i + 1 < inputs.size()) next = read_exr(inputs[i + 1]);
+        if (i + 1 < inputs.size() && !fb.has(temporal_layers::dt) && has_temporal_halves(fb, next))
+            add_temporal_difference(fb, next, inputs[i], inputs[i + 1]);
         rec.push(temporal_frame(fb, inputs[i]));
         drain();
+        fb = std::move(next);
     }
     rec.finish();
     drain();

@@ -1,6 +1,12 @@
 #include "gdr/scene/animated_scene.h"
 
 #include <algorithm>
+#include <climits>
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include <tbb/parallel_for.h>
 #include <utility>
 
 #include "gdr/core/error.h"
@@ -193,6 +199,33 @@ void add_motion_layers(FrameBuffer& fb, const AnimatedScene& anim, const Scene& 
     fb.set("motion_fwd", std::move(m.fwd));
     fb.set("motion_bwd", std::move(m.bwd));
     fb.set("object_id", std::move(m.object_id));
+}
+
+Image replay_map(const AnimatedScene& anim, const Scene& scene, int frame) {
+    const int w = scene.camera().width(), h = scene.camera().height();
+    const std::unique_ptr<Scene> previous = anim.scene_at(double(frame) - 1.0);
+    // The previous frame's forward motion, rounded, per pixel (INT_MIN: none).
+    std::vector<std::pair<int, int>> fwd(size_t(w) * size_t(h), {INT_MIN, INT_MIN});
+    tbb::parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            const PixelMotion m = pixel_motion(anim, *previous, frame - 1, x, y);
+            if (m.fwd_valid) fwd[size_t(y) * w + x] = {int(std::lround(m.fwd.x)), int(std::lround(m.fwd.y))};
+        }
+    });
+    Image out(w, h, 2);
+    tbb::parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            out.at(x, y, 0) = -1.f, out.at(x, y, 1) = -1.f;
+            const PixelMotion m = pixel_motion(anim, scene, frame, x, y);
+            if (!m.bwd_valid) continue;
+            const int qx = x + int(std::lround(m.bwd.x)), qy = y + int(std::lround(m.bwd.y));
+            if (qx < 0 || qy < 0 || qx >= w || qy >= h) continue;
+            const auto [fx, fy] = fwd[size_t(qy) * w + qx];
+            if (fx == INT_MIN || qx + fx != x || qy + fy != y) continue;
+            out.at(x, y, 0) = float(qx), out.at(x, y, 1) = float(qy);
+        }
+    });
+    return out;
 }
 
 uint64_t frame_seed(uint64_t seed, int frame) {

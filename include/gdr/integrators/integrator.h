@@ -16,6 +16,18 @@
 
 namespace gdr {
 
+/// How an integrator that shares random numbers between consecutive frames of
+/// an animation (tgpt) keys its samplers in one frame: temporal seed sharing
+/// of Manzi, Kettunen, Durand, Zwicker and Lehtinen, "Temporal
+/// Gradient-Domain Path Tracing" (2016), ALGORITHMS.md section 6.
+struct FrameSampling {
+    uint64_t next_seed = 0;  ///< The next frame's own sampler seed (its RenderSettings::seed).
+    /// 2 channels per pixel, or empty: the pixel (column, row) of the previous
+    /// frame whose random numbers this frame's first half replays at that
+    /// pixel, (-1, -1) where the pixel has no correspondence and uses its own.
+    Image replay;
+};
+
 /// How much to render and how.
 struct RenderSettings {
     long long spp = 16;            ///< Samples per pixel to take (ignored when time_budget > 0).
@@ -37,6 +49,10 @@ struct RenderSettings {
     /// from a copy of the sums taken only for such passes. Does not change
     /// the image.
     double stop_latency = 1.0;
+    /// Seed sharing with the neighbouring frames, for integrators whose
+    /// shares_frame_samples() is true; nullptr: a still (the next seed is
+    /// then derived from `seed`, and no pixel replays another's numbers).
+    const FrameSampling* frame_sampling = nullptr;
 };
 
 /// Progress of a running render, reported from worker threads.
@@ -74,6 +90,9 @@ public:
     /// reconstruction is not the average of two reconstructions), after
     /// merge_renders() pooled two renders of this integrator into it.
     virtual void update_merged(FrameBuffer& merged) const { (void)merged; }
+    /// True if a frame of an animation should be rendered with its
+    /// RenderSettings::frame_sampling filled in (see FrameSampling).
+    virtual bool shares_frame_samples() const { return false; }
 };
 
 /// The process-wide integrator registry, with the built-ins registered on first use.

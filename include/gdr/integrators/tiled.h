@@ -157,6 +157,8 @@ protected:
         /// Where the sample's splats go (the tile's list) when the
         /// integrator has splat layers; nullptr otherwise.
         SplatList* splats = nullptr;
+        /// The sample's number within its pixel (0 where sample() made the job).
+        uint32_t index = 0;
     };
     /// Computes jobs[0..n) as sample() each, job i writing its slots to
     /// out + i * stride (zero-initialised); adds the rays cast to `rays`. The
@@ -173,6 +175,10 @@ protected:
     /// The most jobs render() passes to sample_batch() at once (1: sample() per
     /// job; render() takes at most 16).
     virtual int batch_size() const { return 1; }
+    /// True if sample_batch() must be called even for one job at a time (an
+    /// integrator that keys further samplers by the job's index); always
+    /// so with splat layers.
+    virtual bool jobs_only() const { return false; }
     /// An integrator's `batch` parameter (jobs per sample_batch() call),
     /// `max_batch` by default; throws ParameterError naming integrator `who`
     /// outside 1..max_batch.
@@ -190,6 +196,9 @@ protected:
     virtual void finalize(const Accumulated& acc, FrameBuffer& out) const;
     /// Called once before the first sample (e.g. to precompute per-scene data).
     virtual void prepare(const Scene& scene) {}
+    /// Called once before the first sample, after prepare(), with the render's
+    /// settings (e.g. for an integrator that keys samplers of its own by the seeds).
+    virtual void begin_render(const Scene& scene, const RenderSettings& settings) {}
 
 private:
     struct Buffers;

@@ -189,7 +189,30 @@ inline constexpr const char* direct = "direct";      ///< Optional, shape of pri
 inline constexpr const char* dt = "dt";              ///< Required on every frame but the video's last (require_dt).
 inline constexpr const char* motion = "motion_fwd";  ///< Optional, 2 channels (pixels to frame k+1).
 inline constexpr const char* valid = "dt_valid";     ///< Optional, 1 channel (0: temporal row dropped).
+/// tgpt's first half (radiance): the frame with its own seed, replaying the
+/// previous frame's second half along the motion.
+inline constexpr const char* primal_a = "primal_a";
+/// tgpt's second half (radiance): the frame with the next frame's seed.
+inline constexpr const char* primal_b = "primal_b";
+/// tgpt, 2 channels: the previous frame's pixel whose random numbers the
+/// first half used at each pixel, (-1, -1) where it used its own.
+inline constexpr const char* replay = "replay_pixel";
 }  // namespace temporal_layers
+
+/// True if `frame` and `next` hold the halves add_temporal_difference() reads.
+bool has_temporal_halves(const FrameBuffer& frame, const FrameBuffer& next);
+
+/// Forms frame k's temporal difference from two consecutive tgpt frames, as
+/// Manzi et al. (2016) do: dt(p) = A_{k+1}(p + m(p)) - B_k(p), with B_k =
+/// frame's primal_b, A_{k+1} = next's primal_a, m = frame's motion_fwd
+/// rounded to whole pixels (0 without the layer), and sets "dt" and
+/// "dt_valid" in `frame`. A row is valid (1) where p + m(p) is in the image
+/// and next's first half replayed p's random numbers there (its replay layer
+/// holds p), so that both terms used the same random numbers; elsewhere dt is
+/// 0 and the row is dropped. InputError naming the frame (`name`, `next_name`)
+/// and the layer if one is missing or mis-shaped.
+void add_temporal_difference(FrameBuffer& frame, const FrameBuffer& next, const std::string& name,
+                             const std::string& next_name);
 
 /// The layers of `fb` (see temporal_layers) copied into a TemporalFrame
 /// called `name`. InputError naming `name` and the layer if primal, dx or dy
@@ -269,7 +292,8 @@ struct FrameSequenceReport {
 };
 
 /// Reads frames first..last (inclusive) of `input_pattern` with read_exr,
-/// reconstructs them with a TemporalReconstructor and writes each result
+/// forms the temporal differences of tgpt frames that have no dt layer
+/// (add_temporal_difference(), from the next frame in the range), reconstructs them with a TemporalReconstructor and writes each result
 /// with write_exr to `output_pattern` as the layer "color" (metadata:
 /// reconstruction = "temporal", reconstruction_params = describe(options),
 /// reconstruction_input = the input's absolute path, frame = its number).

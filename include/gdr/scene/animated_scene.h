@@ -117,6 +117,15 @@ MotionLayers motion_layers(const AnimatedScene& anim, const Scene& scene, int fr
 /// Adds motion_layers() to `fb` as the layers "motion_fwd", "motion_bwd" and "object_id".
 void add_motion_layers(FrameBuffer& fb, const AnimatedScene& anim, const Scene& scene, int frame);
 
+/// Where frame `frame`'s pixels were in frame `frame` - 1, as temporal
+/// seed sharing uses it (FrameSampling::replay; ALGORITHMS.md section 6):
+/// 2 channels per pixel, the pixel q = p + round(motion_bwd(p)) of the
+/// previous frame (column, row), kept only where the round trip closes
+/// (q's forward motion, rounded, lands back on p, so that q's surface is the
+/// one visible at q: the nearest wins) and (-1, -1) elsewhere. `scene` is
+/// anim's scene at `frame`; the previous frame's scene is built from `anim`.
+Image replay_map(const AnimatedScene& anim, const Scene& scene, int frame);
+
 /// The sampler seed of frame `frame` of a render with seed `seed`: a
 /// SplitMix64 mix of both (Steele, Lea and Flood, "Fast Splittable
 /// Pseudorandom Number Generators", OOPSLA 2014), below 2^63, so that every
