@@ -1,16 +1,38 @@
-// Spatio-temporal reconstruction: time, CG iterations and, for L1, the energy
-// gap to a converged IRLS of one window of a synthetic noisy video, per
-// solver and preconditioner (gdr/reconstruct/temporal.h).
+// Temporal gradient-domain rendering, two parts.
 //
-//   bench_temporal [--width W] [--height H] [--frames F]
+// Videos (default): the bundled animations (a camera swinging through the
+// Cornell box, the cow walking in it) rendered at equal render time per
+// frame by PT, per-frame gpt with its L1 and weighted reconstructions, and
+// tgpt with the spatio-temporal L1 and L2 reconstructions; per-frame relMSE
+// (mean over frames) and the flicker error (relMSE of frame-to-frame
+// differences, metrics.h) against a high-spp PT reference video, cached.
+// Reconstruction time is printed separately from the render budget.
+//
+//   bench_temporal [--time T] [--frames F] [--first K] [--width W] [--ref-spp N]
+//                  [--cache DIR] [--scenes camera,object] [--quick]
+//
+// Solver (--solver): time, CG iterations and, for L1, the energy gap to a
+// converged IRLS of one window of a synthetic noisy video, per solver and
+// preconditioner (gdr/reconstruct/temporal.h).
+//
+//   bench_temporal --solver [--width W] [--height H] [--frames F]
 #include <fmt/format.h>
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <random>
 #include <string>
+#include <vector>
 
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/exr.h"
+#include "gdr/io/scene_file.h"
+#include "gdr/metrics.h"
+#include "gdr/reconstruct/reconstructor.h"
 #include "gdr/reconstruct/temporal.h"
+#include "gdr/scene/animated_scene.h"
 
 using namespace gdr;
 
@@ -51,16 +73,154 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-}  // namespace
+struct VideoOptions {
+    double time = 1.0;      // render seconds per frame, every method
+    int frames = 12;        // frames per video
+    int first = 12;         // first frame
+    int width = 128;        // square frames
+    long long ref_spp = 1024;
+    std::string cache = "temporal-reference-cache";
+    std::vector<std::string> scenes{"camera", "object"};
+};
 
-int main(int argc, char** argv) {
-    int w = 320, h = 180, F = 10;
-    for (int i = 1; i + 1 < argc; i += 2) {
-        const std::string a = argv[i];
-        if (a == "--width") w = std::stoi(argv[i + 1]);
-        else if (a == "--height") h = std::stoi(argv[i + 1]);
-        else if (a == "--frames") F = std::stoi(argv[i + 1]);
+// Frame `k` of scene file `path` at the benchmark's resolution.
+SceneFile frame_scene(const std::string& path, int k, int width) {
+    SceneFile sf = load_scene_file(path);
+    set_resolution(sf, width, width);
+    set_frame(sf, k);
+    return sf;
+}
+
+// One frame by `integrator` as `gdr render --frames` renders it: the frame's
+// seed (and, for tgpt, the next frame's and the replay map), its motion layers.
+// Returns the frame and the render's seconds.
+std::pair<FrameBuffer, double> render_frame(const std::string& path, int k, int width, const std::string& integrator,
+                                            const Params& params, double time, long long spp, uint64_t base_seed) {
+    SceneFile sf = frame_scene(path, k, width);
+    auto integ = integrator_registry().create(integrator, params);
+    RenderSettings st;
+    st.seed = frame_seed(base_seed, k);
+    if (time > 0.0) st.time_budget = time;
+    else st.spp = spp;
+    FrameSampling fs;
+    if (integ->shares_frame_samples()) {
+        fs.next_seed = frame_seed(base_seed, k + 1);
+        fs.replay = replay_map(*sf.animation, *sf.scene, k);
+        st.frame_sampling = &fs;
     }
+    FrameBuffer fb;
+    const RenderStats rs = integ->render(*sf.scene, st, fb);
+    add_motion_layers(fb, *sf.animation, *sf.scene, k);
+    return {std::move(fb), rs.seconds};
+}
+
+// The cached PT reference of frame k (rendered and cached when missing).
+Image reference_frame(const VideoOptions& o, const std::string& scene, const std::string& path, int k) {
+    namespace fs = std::filesystem;
+    fs::create_directories(o.cache);
+    const std::string file =
+        (fs::path(o.cache) / fmt::format("{}-{}px-{}spp-{:04d}.exr", scene, o.width, o.ref_spp, k)).string();
+    if (fs::exists(file)) {
+        try {
+            return read_exr(file).get("color");
+        } catch (const std::exception& e) {
+            std::printf("  cached reference %s unreadable (%s); re-rendering\n", file.c_str(), e.what());
+        }
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    FrameBuffer fb = render_frame(path, k, o.width, "pt", Params("reference"), 0.0, o.ref_spp, 0x5eed).first;
+    // Written under a temporary name and renamed: an interrupted run leaves no damaged entry.
+    write_exr(file + ".part.exr", fb);
+    fs::rename(file + ".part.exr", file);
+    std::printf("  reference frame %d: %lld spp in %.1f s\n", k, o.ref_spp, seconds_since(t0));
+    std::fflush(stdout);
+    return fb.get("color");
+}
+
+struct Row {
+    std::string method;
+    std::vector<Image> frames;
+    double render_s = 0, reconstruct_s = 0;  // per frame
+};
+
+void print_row(const std::string& scene, const Row& r, const std::vector<Image>& refs, double pt_flicker) {
+    double rel = 0;
+    for (size_t i = 0; i < refs.size(); ++i) rel += relmse(r.frames[i], refs[i]);
+    rel /= double(refs.size());
+    const double flicker = temporal_relmse(r.frames, refs);
+    std::printf("%-7s %-20s relMSE %.5f  flicker %.5f (%.2fx PT's)  render %.2f s  reconstruct %.3f s per frame\n",
+                scene.c_str(), r.method.c_str(), rel, flicker, pt_flicker > 0 ? pt_flicker / flicker : 1.0,
+                r.render_s, r.reconstruct_s);
+    std::fflush(stdout);
+}
+
+int run_videos(const VideoOptions& o) {
+    const std::string dir = std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/";
+    std::printf("equal render time per frame: %.2f s, frames %d..%d, %dx%d, reference PT %lld spp\n", o.time,
+                o.first, o.first + o.frames - 1, o.width, o.width, o.ref_spp);
+    for (const std::string& scene : o.scenes) {
+        const std::string path = dir + (scene == "camera" ? "animation.json" : "moving-object.json");
+        std::vector<Image> refs;
+        for (int k = o.first; k < o.first + o.frames; ++k) refs.push_back(reference_frame(o, scene, path, k));
+        // Frames by `integrator` (rendered without reconstructions), then each
+        // of `methods` ({row name, reconstructor; "" = the "color" layer}) timed
+        // on its own.
+        const auto per_frame = [&](const std::string& integrator,
+                                   const std::vector<std::pair<std::string, std::string>>& methods) {
+            std::vector<Row> rows(methods.size());
+            for (size_t m = 0; m < methods.size(); ++m) rows[m].method = methods[m].first;
+            std::vector<FrameBuffer> fbs;
+            Params p(integrator);
+            if (integrator != "pt") p.set("reconstruct", "none");
+            for (int k = o.first; k < o.first + o.frames; ++k) {
+                auto [fb, render_s] = render_frame(path, k, o.width, integrator, p, o.time, 0, 1);
+                for (size_t m = 0; m < methods.size(); ++m) {
+                    rows[m].render_s += render_s / o.frames;
+                    if (methods[m].second.empty()) {
+                        rows[m].frames.push_back(fb.get("color"));
+                        continue;
+                    }
+                    const auto t0 = std::chrono::steady_clock::now();
+                    Params rp(methods[m].second);
+                    rows[m].frames.push_back(reconstruct(methods[m].second, rp, gradient_buffers(fb)));
+                    rows[m].reconstruct_s += seconds_since(t0) / o.frames;
+                }
+                fbs.push_back(std::move(fb));
+            }
+            return std::pair{rows, std::move(fbs)};
+        };
+        auto [pt, pt_fbs] = per_frame("pt", {{"PT", ""}});
+        const double pt_flicker = temporal_relmse(pt[0].frames, refs);
+        print_row(scene, pt[0], refs, pt_flicker);
+        auto [gpt, gpt_fbs] = per_frame("gpt", {{"gpt + L1", "poisson-l1"}, {"gpt + weighted", "poisson-weighted"}});
+        for (const Row& r : gpt) print_row(scene, r, refs, pt_flicker);
+        auto [tgpt, tgpt_fbs] = per_frame("tgpt", {{"tgpt per-frame L1", "poisson-l1"}});
+        print_row(scene, tgpt[0], refs, pt_flicker);
+        for (TemporalNorm norm : {TemporalNorm::l1, TemporalNorm::l2}) {
+            TemporalOptions to;
+            to.norm = norm;
+            Row r;
+            r.method = norm == TemporalNorm::l1 ? "tgpt + temporal L1" : "tgpt + temporal L2";
+            r.render_s = tgpt[0].render_s;
+            const auto t0 = std::chrono::steady_clock::now();
+            TemporalReconstructor rec(to);
+            for (size_t i = 0; i < tgpt_fbs.size(); ++i) {
+                FrameBuffer fb = tgpt_fbs[i];
+                if (i + 1 < tgpt_fbs.size()) add_temporal_difference(fb, tgpt_fbs[i + 1], "frame", "next frame");
+                rec.push(temporal_frame(fb, "frame " + std::to_string(o.first + int(i))));
+                while (rec.ready()) r.frames.push_back(rec.pop());
+            }
+            rec.finish();
+            while (rec.ready()) r.frames.push_back(rec.pop());
+            r.reconstruct_s = seconds_since(t0) / o.frames;
+            print_row(scene, r, refs, pt_flicker);
+        }
+    }
+    return 0;
+}
+
+
+int run_solver(int w, int h, int F) {
     fmt::print("window of {} frames of {}x{}x3\n", F, w, h);
     auto run = [&](const std::vector<TemporalFrame>& frames, const TemporalOptions& o, std::vector<Image>& out) {
         std::vector<TemporalFrameView> v;
@@ -100,4 +260,54 @@ int main(int argc, char** argv) {
             }
     }
     return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    bool solver = false;
+    int w = 320, h = 180, F = 10;
+    VideoOptions vo;
+    std::vector<std::string> args(argv + 1, argv + argc);
+    for (size_t i = 0; i < args.size(); ++i) {
+        const std::string& a = args[i];
+        const auto next = [&]() -> const std::string& {
+            if (i + 1 >= args.size()) {
+                std::fprintf(stderr, "bench_temporal: %s needs a value\n", a.c_str());
+                std::exit(2);
+            }
+            return args[++i];
+        };
+        if (a == "--solver") solver = true;
+        else if (a == "--quick") vo.time = 0.1, vo.frames = 3, vo.width = 24, vo.ref_spp = 32, vo.first = 20;
+        else if (a == "--width") w = vo.width = std::stoi(next());
+        else if (a == "--height") h = std::stoi(next());
+        else if (a == "--frames") F = vo.frames = std::stoi(next());
+        else if (a == "--first") vo.first = std::stoi(next());
+        else if (a == "--time") vo.time = std::stod(next());
+        else if (a == "--ref-spp") vo.ref_spp = std::stoll(next());
+        else if (a == "--cache") vo.cache = next();
+        else if (a == "--scenes") {
+            vo.scenes.clear();
+            std::string list = next();
+            for (size_t at = 0; at <= list.size();) {
+                const size_t comma = std::min(list.find(',', at), list.size());
+                vo.scenes.push_back(list.substr(at, comma - at));
+                at = comma + 1;
+            }
+        } else {
+            std::fprintf(stderr, "bench_temporal: unknown option %s\n", a.c_str());
+            return 2;
+        }
+    }
+    for (const std::string& sc : vo.scenes)
+        if (sc != "camera" && sc != "object") {
+            std::fprintf(stderr, "bench_temporal: unknown scene '%s' (camera, object)\n", sc.c_str());
+            return 2;
+        }
+    if (vo.frames < 2) {
+        std::fprintf(stderr, "bench_temporal: --frames must be at least 2 (flicker needs frame pairs)\n");
+        return 2;
+    }
+    return solver ? run_solver(w, h, F) : run_videos(vo);
 }
