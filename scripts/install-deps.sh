@@ -11,7 +11,9 @@
 # And python3-dev, pybind11-dev, python3-numpy and python3-matplotlib, for the
 # Python module and its example (without them the module is not built and its
 # tests are reported as skipped), and libtorch-dev, for the optional neural
-# reconstructor (CMake skips that target without it).
+# reconstructor (CMake skips that target without it). And ffmpeg, for gdr video's
+# MP4 output (without it gdr video writes the PNG sequence, and its MP4 test is
+# skipped).
 # Failing to install any of these groups is reported and stops nothing;
 # GDR_SKIP_OPTIONAL=1 leaves them all out.
 set -euo pipefail
@@ -20,18 +22,21 @@ packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libt
 optional=(slurm-wlm munge)
 optional_python=(python3-dev pybind11-dev python3-numpy python3-matplotlib)
 optional_neural=(libtorch-dev)
+optional_video=(ffmpeg)
 installed() {
     # Installed means "install ok installed"; a removed package can leave its status entry behind.
     dpkg -s "$1" 2>/dev/null | grep -q '^Status: install ok installed'
 }
-missing=() missing_optional=() missing_python=() missing_neural=()
+missing=() missing_optional=() missing_python=() missing_neural=() missing_video=()
 for p in "${packages[@]}"; do installed "$p" || missing+=("$p"); done
 if [[ ${GDR_SKIP_OPTIONAL:-0} != 1 ]]; then
     for p in "${optional[@]}"; do installed "$p" || missing_optional+=("$p"); done
     for p in "${optional_python[@]}"; do installed "$p" || missing_python+=("$p"); done
     for p in "${optional_neural[@]}"; do installed "$p" || missing_neural+=("$p"); done
+    for p in "${optional_video[@]}"; do installed "$p" || missing_video+=("$p"); done
 fi
-if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0 && ${#missing_python[@]} == 0 && ${#missing_neural[@]} == 0)); then
+if ((${#missing[@]} == 0 && ${#missing_optional[@]} == 0 && ${#missing_python[@]} == 0 && ${#missing_neural[@]} == 0 &&
+      ${#missing_video[@]} == 0)); then
     echo "install-deps: all build dependencies are installed"
     exit 0
 fi
@@ -52,6 +57,11 @@ if ((${#missing_neural[@]} > 0)); then
     echo "install-deps: installing the optional ${missing_neural[*]} (for the neural reconstructor)"
     "${sudo[@]}" apt-get install -y --no-install-recommends "${missing_neural[@]}" </dev/null ||
         echo "install-deps: warning: could not install ${missing_neural[*]}; the neural reconstructor will be skipped" >&2
+fi
+if ((${#missing_video[@]} > 0)); then
+    echo "install-deps: installing the optional ${missing_video[*]} (for gdr video's MP4 output)"
+    "${sudo[@]}" apt-get install -y --no-install-recommends "${missing_video[@]}" </dev/null ||
+        echo "install-deps: warning: could not install ${missing_video[*]}; gdr video will write PNG sequences only" >&2
 fi
 ((${#missing_optional[@]} > 0)) || exit 0
 

@@ -154,6 +154,24 @@ const CommandHelp kCommands[] = {
      "                    their mean, and the temporal (flicker) relMSE, mean over consecutive frames,\n"
      "                    pixels and channels of ((x[k+1]-x[k])-(r[k+1]-r[k]))^2/(((r[k+1]+r[k])/2)^2+0.01)\n"
      "A grey layer is broadcast to compare with an RGB one, and alpha is dropped to compare with RGB."},
+    {"video",
+     "gdr video 'IN.%04d.exr' FIRST:LAST -o OUT.mp4|'OUT.%04d.png' [--layer NAME] [--png 'F.%04d.png']\n"
+     "          [--fps F] [--crf N] [--exposure STOPS]",
+     "Makes a video of an animation's frames FIRST to LAST (inclusive): each frame's EXR is tone-mapped\n"
+     "as gdr's PNG previews are (sRGB, clamped to [0,1], NaN black), and written as a PNG sequence\n"
+     "and/or encoded as an MP4 by ffmpeg (H.264 with libx264 if it has it, yuv420p; an odd width or\n"
+     "height is padded to even by repeating the last column or row). Without ffmpeg on PATH the PNG\n"
+     "sequence is written instead (--png, else OUT.%04d.png beside OUT.mp4) and the exit status is 0.\n"
+     "OUT.mp4 is written under a temporary name and renamed when complete, so a failed encode leaves\n"
+     "an existing OUT.mp4 as it was. Outputs never replace an input; other existing outputs are replaced.\n"
+     "  --layer NAME      the layer shown (default: each frame's final image, as its PNG preview shows:\n"
+     "                    reconstruction_weighted, else reconstruction_l1, else color; for frames of gdr\n"
+     "                    reconstruct --frames, color); every frame must have it\n"
+     "  --png PATTERN     also write the PNG sequence (with -o OUT.mp4)\n"
+     "  --fps F           frame rate (default: the \"fps\" gdr render --frames stores, also found through a\n"
+     "                    reconstructed frame's input; else 24)\n"
+     "  --crf N           H.264 quality, 0 (lossless) to 51 (default 18)\n"
+     "  --exposure STOPS  exposure, as gdr render --exposure gives the PNG previews"},
     {"check-shift",
      "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--integrator gpt|gbdpt] [--paths N] [--seed S]\n"
      "                [--max-depth D] [--threshold T] [--probabilistic] [-D name=value]... [--lenient]",
@@ -202,6 +220,7 @@ int list_plugins();
 int check_shift(const std::vector<std::string>& args);
 int reconstruct(const std::vector<std::string>& args);
 int compare(const std::vector<std::string>& args);
+int video(const std::vector<std::string>& args);
 
 int run(const std::vector<std::string>& args) {
     if (args.empty()) {
@@ -242,6 +261,7 @@ int run(const std::vector<std::string>& args) {
     if (cmd == "check-shift") return check_shift(rest);
     if (cmd == "reconstruct") return reconstruct(rest);
     if (cmd == "compare") return compare(rest);
+    if (cmd == "video") return video(rest);
     throw ParameterError("unknown command '" + cmd + "'\n" + usage());
 }
 

@@ -37,8 +37,7 @@ uint8_t to_byte(float v) {
 
 }  // namespace
 
-void write_png_preview(const std::string& path, const Image& linear, float exposure) {
-    if (linear.empty()) throw RuntimeFailure("cannot write PNG '" + path + "': the image is empty");
+std::vector<uint8_t> preview_bytes(const Image& linear, float exposure) {
     const int w = linear.width(), h = linear.height(), c = linear.channels();
     // 2-channel images (e.g. motion) are shown as R, G with B = 0.
     const int out_c = c == 2 ? 3 : c;
@@ -53,6 +52,14 @@ void write_png_preview(const std::string& path, const Image& linear, float expos
             dst[k] = to_byte(alpha ? src[k] : linear_to_srgb(src[k] * scale));
         }
     }
+    return bytes;
+}
+
+void write_png_preview(const std::string& path, const Image& linear, float exposure) {
+    if (linear.empty()) throw RuntimeFailure("cannot write PNG '" + path + "': the image is empty");
+    const int w = linear.width(), h = linear.height(), c = linear.channels();
+    const int out_c = c == 2 ? 3 : c;
+    const std::vector<uint8_t> bytes = preview_bytes(linear, exposure);
 
     const io::FileTarget target = io::file_target(path);
     if (!stbi_write_png(target.write_path.c_str(), w, h, out_c, bytes.data(), w * out_c)) {
