@@ -46,6 +46,14 @@ std::string box_scene(int res, const std::string& meshes_extra,
   "meshes": [{"file": ")" + test::box("Original") + "\"}" + meshes_extra + "]}";
 }
 
+// Writes quad.obj into `dir` and returns its box_scene() mesh entry: a quad in
+// front of the back wall moving right by 0.2 units a frame.
+std::string moving_quad(const test::OutDir& dir) {
+    write_text(dir("quad.obj"), quad_obj(0.f, 1.f, 0.f, 0.35f));
+    return R"(, {"file": "quad.obj", "keys": [{"frame": 0, "translate": [-0.3, 0, 0]},
+        {"frame": 3, "translate": [0.3, 0, 0]}]})";
+}
+
 // Frame `frame` of the animation in `path`, rendered by tgpt as `gdr render
 // --frames` renders it: the frame's seed, the next frame's seed and the
 // replay map. `next_offset` 1 is right; another value is the wrong variant
@@ -105,9 +113,7 @@ TEST_CASE("tgpt: the replay map follows an analytic translation and closes its r
     test::OutDir dir("tgpt-replay");
     // A quad in front of the back wall moving right by 0.2 units a frame,
     // about 2 pixels at 32 pixels across the box.
-    write_text(dir("quad.obj"), quad_obj(0.f, 1.f, 0.f, 0.35f));
-    const std::string moving = R"(, {"file": "quad.obj", "keys": [{"frame": 0, "translate": [-0.3, 0, 0]},
-        {"frame": 3, "translate": [0.3, 0, 0]}]})";
+    const std::string moving = moving_quad(dir);
     write_text(dir("moving.json"), box_scene(32, moving));
     SceneFile sf = load_scene_file(dir("moving.json"));
     set_frame(sf, 2);
@@ -166,9 +172,7 @@ TEST_CASE("tgpt: the replay map follows an analytic translation and closes its r
 
 TEST_CASE("tgpt: dt estimates the difference of converged frames along the motion", "[tgpt][statistical]") {
     test::OutDir dir("tgpt-dt");
-    write_text(dir("quad.obj"), quad_obj(0.f, 1.f, 0.f, 0.35f));
-    const std::string moving = R"(, {"file": "quad.obj", "keys": [{"frame": 0, "translate": [-0.3, 0, 0]},
-        {"frame": 3, "translate": [0.3, 0, 0]}]})";
+    const std::string moving = moving_quad(dir);
     write_text(dir("object.json"), box_scene(24, moving));
     // The camera pans right and turns: motion everywhere.
     write_text(dir("camera.json"), box_scene(24, "", R"("keys": [{"frame": 0, "position": [-0.3, 1, 3.5], "target": [0, 1, 0]},
@@ -232,9 +236,7 @@ TEST_CASE("tgpt: dt estimates the difference of converged frames along the motio
 
 TEST_CASE("tgpt: frames rendered in any order or in separate runs are the same files", "[tgpt][cli]") {
     test::OutDir dir("tgpt-jobs");
-    write_text(dir("quad.obj"), quad_obj(0.f, 1.f, 0.f, 0.35f));
-    write_text(dir("anim.json"), box_scene(16, R"(, {"file": "quad.obj", "keys": [{"frame": 0, "translate": [-0.3, 0, 0]},
-        {"frame": 3, "translate": [0.3, 0, 0]}]})"));
+    write_text(dir("anim.json"), box_scene(16, moving_quad(dir)));
     const auto render = [&](const std::string& range, const std::string& out) {
         test::stdout_of([&] {
             cli::run({"render", dir("anim.json"), "--integrator", "tgpt", "--spp", "2", "--frames", range, "-o",

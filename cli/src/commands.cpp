@@ -66,7 +66,7 @@ const CommandHelp kCommands[] = {
      "           [--frame K | --frames FIRST:LAST] -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
-     "  --integrator NAME     pt, gpt, bdpt, or any registered integrator (gdr list); default: the scene's\n"
+     "  --integrator NAME     pt, gpt, bdpt, gbdpt, tgpt or any registered one (gdr list); default: the scene's\n"
      "  --spp N               samples per pixel (with --resume: the new total)\n"
      "  --time SECONDS        render whole passes until the wall-clock budget is spent (with --resume: the new total)\n"
      "  --threads N           worker threads (0: all cores)\n"

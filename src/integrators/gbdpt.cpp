@@ -55,19 +55,14 @@
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/shift/bidir.h"
 #include "gdr/shift/offset_path.h"
+#include "gradient_slots.h"
 
 namespace gdr {
 
 namespace {
 
-constexpr int kDirs = 4;
-const int kDx[kDirs] = {1, -1, 0, 0};
-const int kDy[kDirs] = {0, 0, 1, -1};
-const char* const kGradSlot[kDirs] = {"g+x", "g-x", "g+y", "g-y"};
-const char* const kSplatSlot[kDirs] = {"s+x", "s-x", "s+y", "s-y"};
-// First RGB triple of each slot in a sample's output (slots() order), then
-// albedo, normal and depth (7 floats) from triple kAux.
-constexpr int kSelf = 0, kGrad = 1, kSplat = kGrad + kDirs, kDirect = kSplat + kDirs, kAux = kDirect + 1;
+using detail::kAux, detail::kDirect, detail::kDirs, detail::kDx, detail::kDy, detail::kGrad, detail::kGradSlot,
+    detail::kSelf, detail::kSplat, detail::kSplatSlot;
 constexpr int kNone = kNoDepth;
 
 // First depth k >= 1 of a pair of connectable vertices z_k, z_{k+1} of a

@@ -15,18 +15,11 @@
 #include "gdr/path/dims.h"
 #include "gdr/path/trace.h"
 #include "gdr/shift/shift.h"
+#include "gradient_slots.h"
 
 namespace gdr::detail {
 
-constexpr int kDirs = 4;
-const int kDx[kDirs] = {1, -1, 0, 0};
-const int kDy[kDirs] = {0, 0, 1, -1};
-const char* const kGradSlot[kDirs] = {"g+x", "g-x", "g+y", "g-y"};
-const char* const kSplatSlot[kDirs] = {"s+x", "s-x", "s+y", "s-y"};
-// First RGB triple of each slot in a sample's output (slots() order); albedo,
-// normal and depth (7 floats) follow from triple kAux, then the optional
-// base-only primal at float kBaseFloat.
-constexpr int kSelf = 0, kGrad = 1, kSplat = kGrad + kDirs, kDirect = kSplat + kDirs, kAux = kDirect + 1;
+// The optional base-only primal follows the slots of gradient_slots.h at this float.
 constexpr int kBaseFloat = 3 * kAux + 7;
 
 
