@@ -9,7 +9,15 @@
 // Reconstruction time is printed separately from the render budget.
 //
 //   bench_temporal [--time T] [--frames F] [--first K] [--width W] [--ref-spp N]
-//                  [--cache DIR] [--scenes camera,object] [--quick]
+//                  [--cache DIR] [--scenes camera,object] [--strip FILE.png] [--set key=value]...
+//                  [--quick]
+//
+// --set passes an option to the spatio-temporal solve (gdr reconstruct
+// --frames --set: w_t, alpha, window, ...); norm is set per row.
+//
+// --strip FILE.png writes FILE-camera.png and FILE-object.png: the first,
+// middle and last frame (columns) of PT, gpt + L1, tgpt + temporal L1 and
+// the reference (rows).
 //
 // Solver (--solver): time, CG iterations and, for L1, the energy gap to a
 // converged IRLS of one window of a synthetic noisy video, per solver and
@@ -28,6 +36,7 @@
 
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
+#include "gdr/io/png.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/metrics.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -81,7 +90,22 @@ struct VideoOptions {
     long long ref_spp = 1024;
     std::string cache = "temporal-reference-cache";
     std::vector<std::string> scenes{"camera", "object"};
+    std::vector<std::string> temporal_sets;  // --set key=value: options of the spatio-temporal solve
+    std::string strip;  // if set: a PNG per scene of three frames by method (rows) and the reference
 };
+
+// A montage: rows of images (all one shape), 2 pixels of black between them.
+Image montage(const std::vector<std::vector<const Image*>>& rows) {
+    const int w = rows[0][0]->width(), h = rows[0][0]->height(), gap = 2;
+    const int cols = int(rows[0].size());
+    Image out(cols * (w + gap) - gap, int(rows.size()) * (h + gap) - gap, 3);
+    for (size_t r = 0; r < rows.size(); ++r)
+        for (int c = 0; c < cols; ++c)
+            for (int y = 0; y < h; ++y)
+                for (int x = 0; x < w; ++x)
+                    out.set_rgb(c * (w + gap) + x, int(r) * (h + gap) + y, rows[r][size_t(c)]->rgb(x, y));
+    return out;
+}
 
 // Frame `k` of scene file `path` at the benchmark's resolution.
 SceneFile frame_scene(const std::string& path, int k, int width) {
@@ -189,15 +213,20 @@ int run_videos(const VideoOptions& o) {
             }
             return std::pair{rows, std::move(fbs)};
         };
+        std::vector<Row> shown;  // the rows of the strip
         auto [pt, pt_fbs] = per_frame("pt", {{"PT", ""}});
+        shown.push_back(pt[0]);
         const double pt_flicker = temporal_relmse(pt[0].frames, refs);
         print_row(scene, pt[0], refs, pt_flicker);
         auto [gpt, gpt_fbs] = per_frame("gpt", {{"gpt + L1", "poisson-l1"}, {"gpt + weighted", "poisson-weighted"}});
         for (const Row& r : gpt) print_row(scene, r, refs, pt_flicker);
+        shown.push_back(gpt[0]);
         auto [tgpt, tgpt_fbs] = per_frame("tgpt", {{"tgpt per-frame L1", "poisson-l1"}});
         print_row(scene, tgpt[0], refs, pt_flicker);
         for (TemporalNorm norm : {TemporalNorm::l1, TemporalNorm::l2}) {
-            TemporalOptions to;
+            Params tp("bench_temporal --set");
+            for (const std::string& kv : o.temporal_sets) tp.set_from_text(kv);
+            TemporalOptions to = temporal_options(tp);
             to.norm = norm;
             Row r;
             r.method = norm == TemporalNorm::l1 ? "tgpt + temporal L1" : "tgpt + temporal L2";
@@ -214,6 +243,18 @@ int run_videos(const VideoOptions& o) {
             while (rec.ready()) r.frames.push_back(rec.pop());
             r.reconstruct_s = seconds_since(t0) / o.frames;
             print_row(scene, r, refs, pt_flicker);
+            if (norm == TemporalNorm::l1) shown.push_back(r);
+        }
+        if (!o.strip.empty()) {
+            // Rows: PT, gpt + L1, tgpt + temporal L1, the reference; columns: first, middle, last frame.
+            const size_t cols[3] = {0, refs.size() / 2, refs.size() - 1};
+            std::vector<std::vector<const Image*>> rows;
+            for (const Row& r : shown) rows.push_back({&r.frames[cols[0]], &r.frames[cols[1]], &r.frames[cols[2]]});
+            rows.push_back({&refs[cols[0]], &refs[cols[1]], &refs[cols[2]]});
+            const std::string path = o.strip.substr(0, o.strip.rfind('.')) + "-" + scene + ".png";
+            write_png_preview(path, montage(rows));
+            std::printf("wrote %s (rows: PT, gpt + L1, tgpt + temporal L1, reference; frames %d, %d, %d)\n",
+                        path.c_str(), o.first + int(cols[0]), o.first + int(cols[1]), o.first + int(cols[2]));
         }
     }
     return 0;
@@ -287,6 +328,8 @@ int main(int argc, char** argv) {
         else if (a == "--time") vo.time = std::stod(next());
         else if (a == "--ref-spp") vo.ref_spp = std::stoll(next());
         else if (a == "--cache") vo.cache = next();
+        else if (a == "--strip") vo.strip = next();
+        else if (a == "--set") vo.temporal_sets.push_back(next());
         else if (a == "--scenes") {
             vo.scenes.clear();
             std::string list = next();
