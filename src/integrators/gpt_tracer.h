@@ -133,8 +133,8 @@ protected:
         for (int j = 0; j < n; ++j) {
             rays += scratch.path[j].rays;
             for (int d = 0; d < kDirs; ++d) rays += scratch.inside[j][d] ? scratch.offsets[j][d].rays : 0;
-            estimate(scene, scratch.path[j], scratch.offsets[j], scratch.inside[j], scratch.terms,
-                     out + size_t(j) * stride);
+            estimate(scene, jobs[j].x, jobs[j].y, scratch.path[j], scratch.offsets[j], scratch.inside[j],
+                     scratch.terms, out + size_t(j) * stride);
         }
     }
     /// The primal and gradients of the samples in the slots named with
@@ -152,6 +152,13 @@ protected:
         const int gpx = grad[0], gmx = grad[1], gpy = grad[2], gmy = grad[3];
         // Straight from the sums: the splat and one-sided gradient slots feed
         // only these layers, so they never become images of their own.
+        // A neighbour's terms are means over its own sample count: their
+        // per-sample variance is scaled by count(pixel) / count(neighbour), so
+        // that every variance layer over the pixel's own count ("spp" layer)
+        // is its estimate's variance under adaptive sampling too (1 otherwise).
+        const auto ratio = [&](int x, int y, int qx, int qy) {
+            return float(double(acc.count(x, y)) / double(acc.count(qx, qy)));
+        };
         tbb::parallel_for(0, H, [&](int y) {
             for (int x = 0; x < W; ++x) {
                 Color p = acc.mean_rgb(self, x, y), pv = acc.variance_rgb(self, x, y);
@@ -160,17 +167,19 @@ protected:
                     const int qx = x - kDx[d], qy = y - kDy[d];
                     if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
                     p += acc.mean_rgb(splat[d], qx, qy);
-                    pv += acc.variance_rgb(splat[d], qx, qy);
+                    pv += ratio(x, y, qx, qy) * acc.variance_rgb(splat[d], qx, qy);
                 }
                 h.primal.set_rgb(x, y, p);
                 h.primal_var.set_rgb(x, y, pv);
                 if (x + 1 < W) {
                     h.dx.set_rgb(x, y, acc.mean_rgb(gpx, x, y) - acc.mean_rgb(gmx, x + 1, y));
-                    h.dx_var.set_rgb(x, y, acc.variance_rgb(gpx, x, y) + acc.variance_rgb(gmx, x + 1, y));
+                    h.dx_var.set_rgb(x, y, acc.variance_rgb(gpx, x, y) +
+                                               ratio(x, y, x + 1, y) * acc.variance_rgb(gmx, x + 1, y));
                 }
                 if (y + 1 < H) {
                     h.dy.set_rgb(x, y, acc.mean_rgb(gpy, x, y) - acc.mean_rgb(gmy, x, y + 1));
-                    h.dy_var.set_rgb(x, y, acc.variance_rgb(gpy, x, y) + acc.variance_rgb(gmy, x, y + 1));
+                    h.dy_var.set_rgb(x, y, acc.variance_rgb(gpy, x, y) +
+                                               ratio(x, y, x, y + 1) * acc.variance_rgb(gmy, x, y + 1));
                 }
             }
         });
@@ -197,6 +206,8 @@ protected:
         out.set("primal_variance", std::move(h.primal_var));
         out.set("dx_variance", std::move(h.dx_var));
         out.set("dy_variance", std::move(h.dy_var));
+        // The weighted reconstruction reads each pixel's own count.
+        if (acc.adaptive()) out.set("spp", acc.count_image());
         if (acc.derived) recon_.add(out, acc.spp, who_);
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
@@ -219,9 +230,9 @@ protected:
 
 private:
 
-    // The sample's slots from its traced base path and offsets.
-    void estimate(const Scene& scene, const CameraPath& path, const OffsetPath* offsets, const bool* inside,
-                  BaseTerms& terms, float* out) const {
+    // The sample's slots from its traced base path (of pixel (px, py)) and offsets.
+    void estimate(const Scene& scene, int px, int py, const CameraPath& path, const OffsetPath* offsets,
+                  const bool* inside, BaseTerms& terms, float* out) const {
         if (path.size() <= 1) return;
         auto put = [&](int slot, const Color& c) {
             out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
@@ -244,7 +255,20 @@ private:
                 put(kSelf, 0.25f * base_alone().base);
                 continue;
             }
-            const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis_);
+            GradientMis mis = mis_;
+            if (adaptive()) {
+                // Unequal sample counts: the multi-sample heuristic weighs each
+                // pixel's technique by its share a = n_p / (n_p + n_q) of the
+                // pair's samples (Manzi, Kettunen,
+                // Durand, Zwicker and Lehtinen, "Temporal Gradient-Domain Path
+                // Tracing", 2016). Any a keeps the pair's
+                // weights summing to one, so a floor on the densities (a
+                // pixel always takes a sample) only costs variance, not bias.
+                const double dp = std::max(0.01f, sample_density(px, py));
+                const double dq = std::max(0.01f, sample_density(px + kDx[d], py + kDy[d]));
+                mis.sample_ratio = dp / (dp + dq);
+            }
+            const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis);
             put(kSelf, 0.25f * e.base);
             put(kGrad + d, e.gradient);
             put(kSplat + d, 0.25f * e.offset);

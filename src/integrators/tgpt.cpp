@@ -117,6 +117,7 @@ protected:
         out.set("primal_variance", mean_var(a.primal_var, b.primal_var));
         out.set("dx_variance", mean_var(a.dx_var, b.dx_var));
         out.set("dy_variance", mean_var(a.dy_var, b.dy_var));
+        if (acc.adaptive()) out.set("spp", acc.count_image());
         if (acc.derived) reconstructions().add(out, acc.spp, who());
         out.set(temporal_layers::primal_a, std::move(a.primal));
         out.set(std::string(temporal_layers::primal_a) + "_variance", std::move(a.primal_var));

@@ -107,6 +107,13 @@ int Accumulated::slot(const std::string& name) const {
     throw ParameterError("no accumulated slot '" + name + "'");
 }
 
+Image Accumulated::count_image() const {
+    Image im(width, height, 1);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) im.at(x, y) = float(count(x, y));
+    return im;
+}
+
 std::vector<Image> Accumulated::images(const std::vector<Want>& wanted) const {
     std::vector<int> slots;
     std::vector<Image> out;
@@ -135,8 +142,9 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         throw RuntimeFailure("this integrator is already rendering: concurrent renders need one integrator each");
     struct Release {
         std::atomic<bool>& flag;
-        ~Release() { flag = false; }
-    } release{rendering_};
+        const Image*& density;
+        ~Release() { flag = false, density = nullptr; }
+    } release{rendering_, density_};
     if (st.time_budget <= 0.0 && st.spp <= 0) throw ParameterError("spp must be positive");
     if (st.first_sample < 0) throw ParameterError("first sample index must be non-negative");
     // A sample's number is 32 bits of its sampler key: past 2^32 a pixel's
@@ -145,9 +153,34 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         throw ParameterError(fmt::format("spp {} from sample {} on exceeds the 2^32 samples per pixel a sampler "
                                          "numbers",
                                          st.spp, st.first_sample));
+    const int W = scene.camera().width(), H = scene.camera().height();
+    const Image* density = st.sample_density;
+    if (density) {
+        if (splat_layers() > 0)
+            throw ParameterError("adaptive sampling: this integrator splats light-tracing samples onto other pixels, "
+                                 "which share one sample count, so it samples uniformly only");
+        if (density->width() != W || density->height() != H || density->channels() != 1)
+            throw ParameterError(fmt::format("adaptive sampling: the sample density is {}x{} with {} channels, not "
+                                             "{}x{} with 1",
+                                             density->width(), density->height(), density->channels(), W, H));
+        float most = 0.f;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                const float d = density->at(x, y);
+                if (!(d >= 0.f && d <= kMaxSampleDensity))
+                    throw ParameterError(fmt::format("adaptive sampling: the sample density at pixel ({}, {}) is {}, "
+                                                     "not between 0 and {}",
+                                                     x, y, d, kMaxSampleDensity));
+                most = std::max(most, d);
+            }
+        if (st.time_budget <= 0.0 && sample_count(st.first_sample + st.spp, most) > (1LL << 32))
+            throw ParameterError(fmt::format("adaptive sampling: a pixel of density {} would take more than the 2^32 "
+                                             "samples a sampler numbers",
+                                             most));
+    }
+    density_ = density;
     prepare(scene);
     begin_render(scene, st);
-    const int W = scene.camera().width(), H = scene.camera().height();
     const std::vector<SlotSpec> specs = slots();
     std::vector<int> offset, var_offset;  // per slot: first channel in the sums / in the squared sums (-1: none)
     int stride = 0, var_stride = 0;
@@ -221,7 +254,17 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     const auto t0 = Clock::now();
     const auto seconds = [&] { return std::chrono::duration<double>(Clock::now() - t0).count(); };
     const bool timed = st.time_budget > 0.0;
-    const uint64_t total_samples = timed ? 0 : uint64_t(st.spp) * W * H;
+    // Samples pixel (x, y) holds after `passes` passes.
+    const auto count_at = [&](int x, int y, long long passes) {
+        return density ? sample_count(passes, density->at(x, y)) : passes;
+    };
+    uint64_t total_samples = timed ? 0 : uint64_t(st.spp) * W * H;
+    if (density && !timed) {
+        total_samples = 0;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                total_samples += uint64_t(count_at(x, y, st.first_sample + st.spp) - count_at(x, y, st.first_sample));
+    }
 
     const int batch = std::clamp(batch_size(), 1, kMaxBatch);
     const bool use_jobs = splatting || jobs_only();
@@ -235,6 +278,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // sums, so that every pixel keeps the same number of samples.
     std::unique_ptr<HugeDoubles> backup_sum, backup_sum2;
     std::vector<uint8_t> tile_done(tiles.size());
+    std::vector<uint64_t> tile_samples(tiles.size());  // samples each tile took in the pass under way
     // Each tile's splats of the pass under way, added to the splat sums in
     // tile order once the pass is whole (an abandoned pass drops them).
     std::vector<SplatList> tile_splats(splatting ? tiles.size() : 0);
@@ -248,10 +292,11 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 std::fill(splat_sum2 + r.begin(), splat_sum2 + r.end(), 0.0);
             });
         });
-    // Runs samples [first, first + count) of every pixel. With `abandonable`,
-    // a tile not yet started once a cancel or abort is seen is skipped, and
-    // the pass is then undone (from the backup, when it is not the first):
-    // returns false in that case.
+    // Runs passes [first, first + count): one sample per pixel each, or each
+    // pixel's share under adaptive sampling. With `abandonable`, a tile not
+    // yet started once a cancel or abort is seen is skipped, and the pass is
+    // then undone (from the backup, when it is not the first): returns false
+    // in that case.
     auto run_pass = [&](long long first, long long count, bool abandonable) {
         std::atomic<bool> skipped{false};
         std::fill(tile_done.begin(), tile_done.end(), uint8_t(0));
@@ -285,7 +330,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 int n = 0;
                 SplatList* splats = splatting ? &tile_splats[ti] : nullptr;
                 if (splats) splats->splats_.clear();
-                uint64_t local_rays = 0, local_nan = 0;
+                uint64_t local_rays = 0, local_nan = 0, local_samples = 0;
                 // Adds one sample's values `a` to pixel (x, y)'s sums, or
                 // drops and reports it if any value is not finite.
                 const auto add = [&](const float* a, int x, int y, double* ps, double* pq) __attribute__((always_inline)) {
@@ -326,7 +371,9 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                             std::fill(pq, pq + var_stride, 0.0);
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
-                        for (long long i = first; i < first + count; ++i) {
+                        const long long i0 = count_at(x, y, first), i1 = count_at(x, y, first + count);
+                        local_samples += uint64_t(i1 - i0);
+                        for (long long i = i0; i < i1; ++i) {
                             if (batch == 1 && !use_jobs) {
                                 // One at a time: no job queue between the sample and its sums.
                                 std::fill(vp, vp + stride, 0.f);
@@ -343,9 +390,10 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                     }
                 if (n > 0) flush();
                 tile_done[ti] = 1;
+                tile_samples[ti] = local_samples;
                 rays += local_rays;
                 nonfinite += local_nan;
-                const uint64_t s = samples += uint64_t(count) * (t.x1 - t.x0) * (t.y1 - t.y0);
+                const uint64_t s = samples += local_samples;
                 if (progress) {
                     Progress p;
                     p.samples = s;
@@ -380,7 +428,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         for (size_t ti = 0; ti < tiles.size(); ++ti) {
             if (!tile_done[ti]) continue;
             const Tile& t = tiles[ti];
-            samples -= uint64_t(count) * (t.x1 - t.x0) * (t.y1 - t.y0);
+            samples -= tile_samples[ti];
             if (keep)
                 tile_rows(t, [&](size_t s0, size_t s1, size_t q0, size_t q1) {
                     std::copy(backup_sum->data + s0, backup_sum->data + s1, sum.data + s0);
@@ -455,13 +503,29 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     acc.derived = !aborted();
     acc.width = W, acc.height = H;
     acc.sum_ = sum.data, acc.sum2_ = sum2.data;
+    std::vector<uint32_t> counts;
+    if (density) {
+        counts.resize(npix);
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                counts[size_t(y) * W + x] =
+                    uint32_t(count_at(x, y, st.first_sample + done) - count_at(x, y, st.first_sample));
+        acc.counts_ = counts.data();
+    }
     acc.stride_ = stride, acc.var_stride_ = var_stride;
     acc.offset_ = offset, acc.var_offset_ = var_offset;
     acc.splat_sum_ = splat_sum, acc.splat_sum2_ = splat_sum2, acc.splat_layers_ = splat_layers;
     out = FrameBuffer(W, H);
     arena.execute([&] { finalize(acc, out); });
-    out.add("spp", 1);
-    std::fill(out.get("spp").values().begin(), out.get("spp").values().end(), float(done));
+    if (density) {
+        // Each pixel's own count, and the density that fixed it (a resumed or
+        // merged render needs it to continue each pixel's sample numbers).
+        out.set("spp", acc.count_image());
+        out.set("sample_density", *density);
+    } else {
+        out.add("spp", 1);
+        std::fill(out.get("spp").values().begin(), out.get("spp").values().end(), float(done));
+    }
     out.metadata()["spp"] = std::to_string(done);
     out.metadata()["seed"] = std::to_string(st.seed);
     out.metadata()["first_sample"] = std::to_string(st.first_sample);

@@ -53,7 +53,29 @@ struct RenderSettings {
     /// shares_frame_samples() is true; nullptr: a still (the next seed is
     /// then derived from `seed`, and no pixel replays another's numbers).
     const FrameSampling* frame_sampling = nullptr;
+    /// Relative sample density per pixel for adaptive sampling (1 channel, the
+    /// camera's size, finite, 0 to kMaxSampleDensity; mean 1 keeps `spp` the
+    /// average count), or nullptr for uniform sampling. A render of J passes
+    /// (J = spp, or as many as the time budget allows) from first_sample on
+    /// gives pixel p the sample numbers sample_count(first_sample, d(p)) to
+    /// sample_count(first_sample + J, d(p)) - 1; each pixel's estimate divides
+    /// by its own count, so it stays unbiased for any density fixed before the
+    /// render (adaptive_sample_density() makes one from a pilot render).
+    const Image* sample_density = nullptr;
 };
+
+/// Largest relative sample density a pixel may ask for (RenderSettings::sample_density).
+constexpr float kMaxSampleDensity = 256.f;
+
+/// Samples a pixel of relative density `density` holds after `passes` passes
+/// of adaptive sampling: 0 before the first pass, then max(1, round(passes *
+/// density)), which never decreases as passes are added, so a render resumed
+/// from a pass count continues the pixel's sample numbers without a gap.
+inline long long sample_count(long long passes, float density) {
+    if (passes <= 0) return 0;
+    const long long n = (long long)(double(passes) * double(density) + 0.5);
+    return n < 1 ? 1 : n;
+}
 
 /// Progress of a running render, reported from worker threads.
 struct Progress {

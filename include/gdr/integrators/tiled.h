@@ -61,7 +61,9 @@ private:
 class Accumulated {
 public:
     std::vector<SlotSpec> specs;  ///< As declared by the integrator.
-    long long spp = 0;            ///< Samples per pixel.
+    /// Samples per pixel; under adaptive sampling, the passes taken (each
+    /// pixel's own number is count()).
+    long long spp = 0;
     int width = 0;                ///< Columns.
     int height = 0;               ///< Rows.
     /// Whether layers derived from the means (reconstructions) are wanted:
@@ -71,9 +73,16 @@ public:
 
     /// Index of a slot by name; throws ParameterError naming it if absent.
     int slot(const std::string& name) const;
-    /// Mean of channel `c` of slot `s` at pixel (x, y), in the slot's units.
+    /// Samples pixel (x, y) holds: spp, or its own count under adaptive sampling.
+    long long count(int x, int y) const { return counts_ ? (long long)counts_[pixel(x, y)] : spp; }
+    /// True if pixels hold counts of their own (adaptive sampling).
+    bool adaptive() const { return counts_ != nullptr; }
+    /// Every pixel's count() as a one-channel image (the "spp" layer).
+    Image count_image() const;
+    /// Mean of channel `c` of slot `s` at pixel (x, y), in the slot's units
+    /// (the pixel's sum over its own sample count).
     float mean(int s, int x, int y, int c) const {
-        return float(sum_[pixel(x, y) * stride_ + offset_[s] + c] / double(spp));
+        return float(sum_[pixel(x, y) * stride_ + offset_[s] + c] / double(count(x, y)));
     }
     /// Per-sample variance of channel `c` of slot `s` at (x, y), in the slot's
     /// units squared; the slot must track a variance.
@@ -81,7 +90,8 @@ public:
         const size_t p = pixel(x, y);
         const double a = sum_[p * stride_ + offset_[s] + c];
         const double b = sum2_[p * var_stride_ + var_offset_[s] + c];
-        return spp > 1 ? float(std::max(0.0, (b - a * (a / double(spp))) / double(spp - 1))) : 0.f;
+        const double n = double(count(x, y));
+        return n > 1.0 ? float(std::max(0.0, (b - a * (a / n)) / (n - 1.0))) : 0.f;
     }
     /// Mean of the first three channels of slot `s` at (x, y).
     Color mean_rgb(int s, int x, int y) const { return {mean(s, x, y, 0), mean(s, x, y, 1), mean(s, x, y, 2)}; }
@@ -117,6 +127,7 @@ private:
     friend class TiledIntegrator;
     size_t pixel(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
     const double* sum_ = nullptr;   // per pixel: `stride_` sums, slots in order
+    const uint32_t* counts_ = nullptr;  // per pixel: samples taken (adaptive sampling), or nullptr: spp each
     const double* sum2_ = nullptr;  // per pixel: `var_stride_` squared sums of the slots with a variance
     int stride_ = 0, var_stride_ = 0;
     std::vector<int> offset_, var_offset_;  // per slot: first channel in the sums / the squared sums (-1: none)
@@ -199,10 +210,19 @@ protected:
     /// Called once before the first sample, after prepare(), with the render's
     /// settings (e.g. for an integrator that keys samplers of its own by the seeds).
     virtual void begin_render(const Scene& scene, const RenderSettings& settings) {}
+    /// The relative sample density of pixel (x, y) in the render under way
+    /// (RenderSettings::sample_density; 1 when sampling is uniform), for
+    /// estimators whose weights depend on the ratio of neighbours' sample counts.
+    float sample_density(int x, int y) const {
+        return density_ ? density_->at(x, y, 0) : 1.f;
+    }
+    /// True while the render under way samples adaptively.
+    bool adaptive() const { return density_ != nullptr; }
 
 private:
     struct Buffers;
     std::unique_ptr<Buffers> buffers_;
+    const Image* density_ = nullptr;  // RenderSettings::sample_density of the render under way
     // Set while render() runs: a second, concurrent render() of the same
     // object would share the accumulators, so it is refused instead.
     std::atomic<bool> rendering_{false};

@@ -1,0 +1,216 @@
+#include "gdr/integrators/adaptive.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <fmt/core.h>
+
+#include "gdr/core/error.h"
+#include "gdr/core/sampler.h"
+
+namespace gdr {
+
+namespace {
+
+// A layer of the pilot with the given channels, or a ParameterError naming it.
+const Image& pilot_layer(const FrameBuffer& fb, const std::string& name, const char* why) {
+    if (!fb.has(name))
+        throw ParameterError("adaptive sampling: the pilot render has no '" + name + "' layer (" + why + ")");
+    const Image& im = fb.get(name);
+    if (im.channels() < 3)
+        throw ParameterError("adaptive sampling: the pilot's layer '" + name + "' has " +
+                             std::to_string(im.channels()) + " channels, not 3");
+    return im;
+}
+
+float channel_sum(const Image& im, int x, int y) {
+    const float s = im.at(x, y, 0) + im.at(x, y, 1) + im.at(x, y, 2);
+    return std::isfinite(s) ? std::max(0.f, s) : 0.f;
+}
+
+// Mean over the (2r+1)^2 window around each pixel, clipped at the border.
+std::vector<float> box_mean(const std::vector<float>& v, int W, int H, int r) {
+    std::vector<float> rows(v.size()), out(v.size());
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double s = 0.0;
+            const int a = std::max(0, x - r), b = std::min(W - 1, x + r);
+            for (int i = a; i <= b; ++i) s += v[size_t(y) * W + i];
+            rows[size_t(y) * W + x] = float(s / double(b - a + 1));
+        }
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double s = 0.0;
+            const int a = std::max(0, y - r), b = std::min(H - 1, y + r);
+            for (int j = a; j <= b; ++j) s += rows[size_t(j) * W + x];
+            out[size_t(y) * W + x] = float(s / double(b - a + 1));
+        }
+    return out;
+}
+
+std::vector<float> median(const std::vector<float>& v, int W, int H, int r) {
+    if (r <= 0) return v;
+    std::vector<float> out(v.size()), win;
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            win.clear();
+            for (int j = std::max(0, y - r); j <= std::min(H - 1, y + r); ++j)
+                for (int i = std::max(0, x - r); i <= std::min(W - 1, x + r); ++i) win.push_back(v[size_t(j) * W + i]);
+            std::nth_element(win.begin(), win.begin() + win.size() / 2, win.end());
+            out[size_t(y) * W + x] = win[win.size() / 2];
+        }
+    return out;
+}
+
+// The publication's [.1 .2 .4 .2 .1] splat, separable, renormalised at the border.
+std::vector<float> smooth(const std::vector<float>& v, int W, int H) {
+    static constexpr float k[5] = {.1f, .2f, .4f, .2f, .1f};
+    std::vector<float> rows(v.size()), out(v.size());
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            float s = 0.f, w = 0.f;
+            for (int i = -2; i <= 2; ++i)
+                if (x + i >= 0 && x + i < W) s += k[i + 2] * v[size_t(y) * W + x + i], w += k[i + 2];
+            rows[size_t(y) * W + x] = s / w;
+        }
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            float s = 0.f, w = 0.f;
+            for (int j = -2; j <= 2; ++j)
+                if (y + j >= 0 && y + j < H) s += k[j + 2] * rows[size_t(y + j) * W + x], w += k[j + 2];
+            out[size_t(y) * W + x] = s / w;
+        }
+    return out;
+}
+
+}  // namespace
+
+Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o) {
+    if (!(o.uniform >= 0.0 && o.uniform <= 1.0))
+        throw ParameterError(fmt::format("adaptive sampling: the uniform share must be between 0 and 1, got {}", o.uniform));
+    if (!(o.max_density >= 1.0 && o.max_density <= double(kMaxSampleDensity)))
+        throw ParameterError(fmt::format("adaptive sampling: the largest density must be between 1 and {}, got {}",
+                                         kMaxSampleDensity, o.max_density));
+    if (!(o.epsilon > 0.0)) throw ParameterError("adaptive sampling: epsilon must be positive");
+    if (o.median_radius < 0 || o.median_radius > 8)
+        throw ParameterError("adaptive sampling: the median radius must be between 0 and 8");
+    const int W = pilot.width(), H = pilot.height();
+    const size_t n = size_t(W) * size_t(H);
+    const bool gradients = o.source == AdaptiveOptions::Source::Gradients;
+    const char* colour = pilot.has("primal") ? "primal" : "color";
+    const Image& primal = pilot_layer(pilot, colour, "the brightness the error is relative to");
+    std::vector<float> error(n, 0.f), bright(n);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) bright[size_t(y) * W + x] = channel_sum(primal, x, y) / 3.f;
+    if (gradients) {
+        const Image& vx = pilot_layer(pilot, "dx_variance", "the gradient-domain integrators write it");
+        const Image& vy = pilot_layer(pilot, "dy_variance", "the gradient-domain integrators write it");
+        // The gradients on the pixel's four edges (the last column of dx and row of dy are unused).
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                float e = 0.f;
+                if (x + 1 < W) e += channel_sum(vx, x, y);
+                if (x > 0) e += channel_sum(vx, x - 1, y);
+                if (y + 1 < H) e += channel_sum(vy, x, y);
+                if (y > 0) e += channel_sum(vy, x, y - 1);
+                error[size_t(y) * W + x] = e;
+            }
+    } else {
+        const std::string var = std::string(colour) + "_variance";
+        const Image& v = pilot_layer(pilot, var, "a render with variances");
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) error[size_t(y) * W + x] = channel_sum(v, x, y);
+    }
+    const std::vector<float> L = box_mean(bright, W, H, 2);
+    std::vector<float> r(n);
+    for (size_t p = 0; p < n; ++p) {
+        const double v = std::sqrt(double(error[p]) / (double(L[p]) * double(L[p]) + o.epsilon));
+        r[p] = std::isfinite(v) ? float(v) : 0.f;
+    }
+    r = smooth(median(r, W, H, o.median_radius), W, H);
+
+    // Density = uniform share + adaptive share, the adaptive part of mean 1
+    // capped so that no pixel exceeds max_density: capped pixels are fixed
+    // and the rest rescaled until the mean holds (water filling).
+    Image density(W, H, 1);
+    double mean = 0.0;
+    for (float v : r) mean += v;
+    mean /= double(std::max<size_t>(n, 1));
+    if (!(mean > 0.0) || o.uniform >= 1.0) {
+        std::fill(density.values().begin(), density.values().end(), 1.f);  // noiseless pilot: nothing to adapt to
+        return density;
+    }
+    const double cap = (o.max_density - o.uniform) / (1.0 - o.uniform);
+    std::vector<double> a(n);
+    for (size_t p = 0; p < n; ++p) a[p] = double(r[p]) / mean;
+    for (int it = 0; it < 50; ++it) {
+        double fixed = 0.0, free = 0.0;
+        for (double v : a) (v >= cap ? fixed : free) += std::min(v, cap);
+        const double want = double(n) - fixed;  // what the uncapped pixels must sum to
+        if (free <= 0.0 || std::abs(want - free) <= 1e-9 * double(n)) break;
+        const double s = want / free;
+        for (double& v : a) v = v >= cap ? cap : std::min(cap, v * s);
+    }
+    for (size_t p = 0; p < n; ++p)
+        density.values()[p] = float(o.uniform + (1.0 - o.uniform) * std::min(a[p], cap));
+    return density;
+}
+
+uint64_t pilot_seed(uint64_t seed) { return mix64(seed ^ 0x70696c6f74ull); }  // "pilot"
+
+RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const RenderSettings& st, FrameBuffer& out,
+                            const AdaptiveRender& ad, const ProgressFn& progress) {
+    if (!(ad.pilot > 0.0 && ad.pilot <= 0.5))
+        throw ParameterError(fmt::format("adaptive sampling: the pilot's share must be above 0 and at most 0.5, got {}",
+                                         ad.pilot));
+    if (st.sample_density)
+        throw ParameterError("adaptive sampling: the render already has a sample density (a resumed render keeps its own)");
+    const bool timed = st.time_budget > 0.0;
+    if (!timed && st.spp < 2) throw ParameterError("adaptive sampling needs at least 2 spp: 1 for the pilot, 1 to adapt");
+    RenderSettings pilot = st;
+    pilot.seed = pilot_seed(st.seed);
+    pilot.first_sample = 0;
+    pilot.frame_sampling = nullptr;  // the pilot estimates variances only: no seed sharing
+    long long pilot_spp = 0;
+    if (timed) {
+        pilot.time_budget = ad.pilot * st.time_budget;
+    } else {
+        pilot_spp = std::clamp((long long)std::llround(ad.pilot * double(st.spp)), 1LL, st.spp - 1);
+        pilot.spp = pilot_spp;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    FrameBuffer pilot_fb;
+    const double share = timed ? ad.pilot : double(pilot_spp) / double(st.spp);
+    RenderStats ps = integrator.render(scene, pilot, pilot_fb, progress ? ProgressFn([&](const Progress& p) {
+        Progress q = p;
+        q.fraction = share * p.fraction;
+        progress(q);
+    }) : ProgressFn());
+    const Image density = adaptive_sample_density(pilot_fb, ad.density);
+    pilot_fb = FrameBuffer();
+    const double pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+    RenderSettings main = st;
+    main.sample_density = &density;
+    if (timed) main.time_budget = std::max(1e-3, st.time_budget - pilot_seconds);
+    else main.spp = st.spp - pilot_spp;
+    RenderStats rs = integrator.render(scene, main, out, progress ? ProgressFn([&](const Progress& p) {
+        Progress q = p;
+        q.fraction = share + (1.0 - share) * p.fraction;
+        q.samples += ps.samples;
+        q.seconds += pilot_seconds;
+        progress(q);
+    }) : ProgressFn());
+    out.metadata()["adaptive_pilot_spp"] = std::to_string(ps.spp);
+    out.metadata()["adaptive_pilot_seconds"] = fmt::format("{:.3f}", pilot_seconds);
+    rs.seconds += pilot_seconds;
+    rs.samples += ps.samples;
+    rs.rays += ps.rays;
+    rs.nonfinite += ps.nonfinite;
+    return rs;
+}
+
+}  // namespace gdr
