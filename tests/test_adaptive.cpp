@@ -10,6 +10,9 @@
 #include <vector>
 
 #include "block_stats.h"
+#include "cli_test_util.h"
+#include "gdr/io/exr.h"
+#include "gdr/io/scene_file.h"
 #include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
 
@@ -264,5 +267,73 @@ TEST_CASE("adaptive: bad densities and integrators that cannot adapt are named",
     CHECK_THROWS_WITH(render_with(*scene, "bdpt", 2, 1, &d), Contains("samples uniformly only"));
     FrameBuffer pilot(8, 8);
     pilot.add("primal", 3);
-    CHECK_THROWS_WITH(adaptive_sample_density(pilot), Contains("'dx_variance'"));
+    AdaptiveOptions g;
+    g.source = AdaptiveOptions::Source::Gradients;
+    CHECK_THROWS_WITH(adaptive_sample_density(pilot, g), Contains("'dx_variance'"));
+    CHECK_THROWS_WITH(adaptive_sample_density(pilot), Contains("'primal_variance'"));
+}
+
+TEST_CASE("adaptive: gdr render --adaptive, --resume and merge keep each pixel's counts", "[adaptive][cli]") {
+    test::OutDir dir("adaptive-cli");
+    const std::string scene = std::string(GDR_SOURCE_DIR) + "/scenes/cornell-box/scene.json";
+    const auto render = [&](std::vector<std::string> extra) {
+        std::vector<std::string> args{"render", scene, "--integrator", "pt", "--width", "24", "--threads", "2"};
+        args.insert(args.end(), extra.begin(), extra.end());
+        test::stdout_of([&] { cli::run(args); });
+    };
+    // 8 spp: a pilot of 2 and 6 passes at the pilot's density.
+    render({"--spp", "8", "--adaptive", "0.25", "--seed", "3", "-o", dir("a.exr")});
+    const FrameBuffer a = read_exr(dir("a.exr"));
+    REQUIRE(a.has("sample_density"));
+    CHECK(a.metadata().at("spp") == "6");
+    CHECK(a.metadata().at("target_spp") == "6");
+    CHECK(a.metadata().at("adaptive_pilot_spp") == "2");
+    const Image& d = a.get("sample_density");
+    for (int y = 0; y < a.height(); ++y)
+        for (int x = 0; x < a.width(); ++x) CHECK(a.get("spp").at(x, y) == float(sample_count(6, d.at(x, y))));
+
+    // Resuming keeps the density and continues each pixel's sample numbers:
+    // the result is the render of 10 passes at that density in one go.
+    render({"--resume", dir("a.exr"), "--spp", "10", "-o", dir("b.exr")});
+    const FrameBuffer b = read_exr(dir("b.exr"));
+    CHECK(b.get("sample_density").values() == d.values());
+    auto scene_file = load_scene_file(scene, {});
+    set_resolution(scene_file, 24, 0);
+    RenderSettings st;
+    st.spp = 10;
+    st.seed = 3;
+    st.sample_density = &d;
+    FrameBuffer whole;
+    integrator_registry().create("pt", Params("test"))->render(*scene_file.scene, st, whole);
+    CHECK(b.get("spp").values() == whole.get("spp").values());
+    double worst = 0.0;
+    for (size_t i = 0; i < whole.get("color").values().size(); ++i)
+        worst = std::max(worst, std::abs(double(b.get("color").values()[i]) - whole.get("color").values()[i]) /
+                                    std::max(1e-3, std::abs(double(whole.get("color").values()[i]))));
+    CHECK(worst < 1e-5);
+
+    // A part with another seed has another density: merged pixel by pixel,
+    // marked as mixed, accepted again by merge and refused by --resume.
+    render({"--spp", "8", "--adaptive", "0.25", "--seed", "4", "-o", dir("c.exr")});
+    test::stdout_of([&] { cli::run({"merge", dir("a.exr"), dir("c.exr"), "-o", dir("m.exr")}); });
+    const FrameBuffer m = read_exr(dir("m.exr")), c = read_exr(dir("c.exr"));
+    CHECK(m.metadata().at("sample_density") == "mixed");
+    CHECK_FALSE(m.has("sample_density"));
+    for (int y = 0; y < m.height(); y += 5)
+        for (int x = 0; x < m.width(); x += 5) {
+            const float na = a.get("spp").at(x, y), nc = c.get("spp").at(x, y);
+            CHECK(m.get("spp").at(x, y) == na + nc);
+            CHECK(m.get("color").at(x, y, 1) ==
+                  Approx((a.get("color").at(x, y, 1) * na + c.get("color").at(x, y, 1) * nc) / (na + nc)).epsilon(1e-5));
+        }
+    render({"--spp", "4", "--seed", "5", "-o", dir("u.exr")});  // uniform: density 1
+    test::stdout_of([&] { cli::run({"merge", dir("m.exr"), dir("u.exr"), "-o", dir("m2.exr")}); });
+    CHECK(read_exr(dir("m2.exr")).get("spp").at(3, 3) == m.get("spp").at(3, 3) + 4.f);
+    CHECK_THAT(test::error_of({"render", scene, "--resume", dir("m.exr"), "--spp", "30", "-o", dir("r.exr")}),
+               Contains("different seeds") || Contains("different sample densities"));
+    CHECK_THAT(test::error_of({"render", scene, "--resume", dir("a.exr"), "--adaptive", "0.2", "-o", dir("r.exr")}),
+               Contains("takes no --adaptive"));
+    CHECK_THAT(test::error_of({"render", scene, "--first-sample", "8", "--adaptive", "0.2", "-o", dir("r.exr")}),
+               Contains("different seeds instead"));
+    CHECK_THAT(test::error_of({"render", scene, "--adaptive", "0.7", "-o", dir("r.exr")}), Contains("at most 0.5"));
 }

@@ -63,7 +63,7 @@ const CommandHelp kCommands[] = {
      "gdr render SCENE.json|SCENE.xml [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
      "           [-D name=value]... [--lenient] [--first-sample K] [--continue] [--exposure STOPS]\n"
-     "           [--frame K | --frames FIRST:LAST] -o OUT.exr",
+     "           [--adaptive SHARE] [--frame K | --frames FIRST:LAST] -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
      "  --integrator NAME     pt, gpt, bdpt, gbdpt, tgpt or any registered one (gdr list); default: the scene's\n"
@@ -82,6 +82,11 @@ const CommandHelp kCommands[] = {
      "  --continue            if OUT exists, continue it in place (it must hold this seed's samples from\n"
      "                        the first sample); if it holds all --spp, do nothing. For parts that a\n"
      "                        scheduler may stop and run again\n"
+     "  --adaptive SHARE      adaptive sampling: a pilot of SHARE of the budget (0 to 0.5, e.g. 0.125) with\n"
+     "                        a seed of its own finds where the gradients (or, for pt, the colours) are\n"
+     "                        noisy, and the rest of the budget goes there; the pilot's samples are not\n"
+     "                        kept, so every pixel stays unbiased. The layers spp and sample_density\n"
+     "                        record each pixel's count and density; --resume keeps the density\n"
      "  -D name=value         a Mitsuba XML scene's $parameter (overrides its <default>)\n"
      "  --lenient             a Mitsuba XML scene's unsupported elements become warnings and are skipped\n"
      "  --exposure STOPS      exposure of the PNG preview\n"

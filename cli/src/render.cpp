@@ -17,6 +17,7 @@
 #include "render_options.h"
 #include "say.h"
 #include "gdr/core/error.h"
+#include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/png.h"
@@ -137,7 +138,7 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     long long spp = -1, seed = -1, first_sample = -1;
     bool continue_part = false;  // --continue: render OUT, or continue the OUT already there
     int width = 0, height = 0;
-    double time_budget = 0.0, exposure = 0.0;
+    double time_budget = 0.0, exposure = 0.0, adaptive = 0.0;
     int threads = 0;
     std::vector<std::string> sets, scene_sets;
     SceneFileOptions scene_options;
@@ -166,6 +167,13 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         else if (opt == "--lenient") scene_options.lenient = true;
         else if (opt == "--resume") resume_path = a.value(opt);
         else if (opt == "--exposure") exposure = a.real_value(opt);
+        else if (opt == "--adaptive") {
+            const std::string v = a.value(opt);
+            adaptive = ArgReader::parse_real(opt, v);
+            if (!(adaptive > 0.0 && adaptive <= 0.5))
+                throw ParameterError("option --adaptive takes the pilot's share of the budget, above 0 and at most 0.5, "
+                                     "got '" + v + "'");
+        }
         else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage("render"));
         else if (scene_path.empty()) scene_path = opt;
         else throw ParameterError("render: unexpected argument '" + opt + "'");
@@ -178,6 +186,13 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
                              resume_path + "'s; give one of them");
     if (continue_part && !resume_path.empty())
         throw ParameterError("render: --continue resumes OUT itself; it takes no --resume");
+    if (adaptive > 0.0 && (first_sample >= 0 || continue_part))
+        throw ParameterError("render: --adaptive chooses each render's density from its own pilot, so parts of one "
+                             "seed (--first-sample, --continue) would not continue each other's samples; render "
+                             "parts with different seeds instead (gdr merge pools them pixel by pixel)");
+    if (adaptive > 0.0 && !resume_path.empty())
+        throw ParameterError("render: --resume continues " + resume_path +
+                             " with its own sample density (if it has one); it takes no --adaptive");
     if (continue_part && time_budget > 0.0)
         throw ParameterError("render: --continue renders a part of a fixed sample count (--spp), not --time");
     check_output_path(out_path);
@@ -289,6 +304,12 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
                              std::to_string(frame_seed_of(uint64_t(seed))) +
                              (frame ? " (frame " + std::to_string(*frame) + " of seed " + std::to_string(seed) + ")" : ""));
         st.seed = previous.seed;
+        if (previous.fb.has("sample_density")) st.sample_density = &previous.fb.get("sample_density");
+        const auto mixed = previous.fb.metadata().find("sample_density");
+        if (mixed != previous.fb.metadata().end() && mixed->second == "mixed")
+            throw InputError(resume_path + ": merged from adaptive renders with different sample densities, so no "
+                             "one density continues its pixels' sample numbers; render more with a new seed and "
+                             "merge the parts (gdr merge)");
         const uint64_t reached = previous.first_sample + previous.spp;  // the next sample number to take
         st.first_sample = (long long)reached;
         // --spp and --time give a new total; without them the stored target is finished.
@@ -383,7 +404,14 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         SignalScope signals;
         ProgressPrinter printer;
         try {
-            rs = integrator->render(*sf.scene, st, fb, [&](const Progress& p) { printer(p); });
+            const ProgressFn show = [&](const Progress& p) { printer(p); };
+            if (adaptive > 0.0) {
+                AdaptiveRender ad;
+                ad.pilot = adaptive;
+                rs = render_adaptive(*integrator, *sf.scene, st, fb, ad, show);
+            } else {
+                rs = integrator->render(*sf.scene, st, fb, show);
+            }
         } catch (const Interrupted& e) {
             printer.finish();
             say("stopped: {}\n", e.what());
@@ -411,7 +439,9 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     if (!identity.scene_hash.empty()) meta["scene_hash"] = identity.scene_hash;
     meta["render_seconds"] = fmt::format("{:.3f}", rs.seconds);
     meta["time_budget"] = fmt::format("{}", st.time_budget);
-    if (st.time_budget <= 0.0) meta["target_spp"] = std::to_string(st.first_sample + st.spp);
+    // An adaptive render's target is the passes after its pilot's share.
+    const long long pilot_spp = adaptive > 0.0 && st.time_budget <= 0.0 ? std::stoll(meta.at("adaptive_pilot_spp")) : 0;
+    if (st.time_budget <= 0.0) meta["target_spp"] = std::to_string(st.first_sample + st.spp - pilot_spp);
     meta["sample_ranges"] = format_sample_ranges({{st.seed, uint64_t(st.first_sample), uint64_t(rs.spp)}});
     meta["gdr_version"] = version();
     meta["interrupted"] = interrupted ? "true" : "false";

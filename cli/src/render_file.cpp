@@ -14,6 +14,7 @@
 
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/png.h"
 
@@ -178,17 +179,41 @@ StoredRender read_stored_render(const std::string& file) {
             throw InputError(file + ": metadata entries 'seed' and 'first_sample' disagree with 'sample_ranges'");
     }
 
-    // Every pixel of a render holds the same number of samples: a layer that
-    // says otherwise was damaged, and would weight a merge wrongly.
+    // Every pixel of a render holds the same number of samples, or under
+    // adaptive sampling the number its density gives for the passes taken: a
+    // layer that says otherwise was damaged, and would weight a merge wrongly.
     const Image& spp = r.fb.get("spp");
     if (spp.channels() != 1) throw InputError(file + ": layer 'spp' has " + std::to_string(spp.channels()) + " channels, not 1");
-    const float want = float(r.spp);
+    const Image* density = r.fb.has("sample_density") ? &r.fb.get("sample_density") : nullptr;
+    // Merged from adaptive renders of different densities: each pixel holds
+    // its own sum of counts, which no single density reproduces.
+    const bool mixed = m.count("sample_density") && m.at("sample_density") == "mixed";
+    if (density && density->channels() != 1)
+        throw InputError(file + ": layer 'sample_density' has " + std::to_string(density->channels()) +
+                         " channels, not 1");
     for (int y = 0; y < spp.height(); ++y)
-        for (int x = 0; x < spp.width(); ++x)
-            if (spp.at(x, y, 0) != want)
+        for (int x = 0; x < spp.width(); ++x) {
+            double want = double(r.spp);
+            if (mixed) {
+                const float n = spp.at(x, y, 0);
+                if (!(n >= 1.f && n == std::floor(n) && double(n) <= double(kMaxSamples)))
+                    throw InputError(fmt::format("{}: layer 'spp' holds {} at pixel ({}, {}), not a sample count", file,
+                                                 n, x, y));
+                continue;
+            }
+            if (density) {
+                const float d = density->at(x, y);
+                if (!(d >= 0.f && d <= kMaxSampleDensity))
+                    throw InputError(fmt::format("{}: layer 'sample_density' holds {} at pixel ({}, {})", file, d, x, y));
+                want = 0.0;
+                for (const SampleRange& s : r.ranges)
+                    want += double(sample_count((long long)(s.first + s.count), d) - sample_count((long long)s.first, d));
+            }
+            if (double(spp.at(x, y, 0)) != want)
                 throw InputError(fmt::format("{}: layer 'spp' holds {} at pixel ({}, {}), but the render has {} samples "
-                                             "per pixel",
-                                             file, spp.at(x, y, 0), x, y, r.spp));
+                                             "there",
+                                             file, spp.at(x, y, 0), x, y, want));
+        }
     r.seconds = metadata_seconds(r.fb, file, "render_seconds");
     r.time_budget = metadata_seconds(r.fb, file, "time_budget");
     if (m.count("target_spp")) r.target_spp = metadata_count(r.fb, file, "target_spp");

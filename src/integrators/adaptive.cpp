@@ -99,7 +99,8 @@ Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o
         throw ParameterError("adaptive sampling: the median radius must be between 0 and 8");
     const int W = pilot.width(), H = pilot.height();
     const size_t n = size_t(W) * size_t(H);
-    const bool gradients = o.source == AdaptiveOptions::Source::Gradients;
+    const bool gradients = o.source == AdaptiveOptions::Source::Gradients ||
+                           (o.source == AdaptiveOptions::Source::Auto && pilot.has("dx_variance"));
     const char* colour = pilot.has("primal") ? "primal" : "color";
     const Image& primal = pilot_layer(pilot, colour, "the brightness the error is relative to");
     std::vector<float> error(n, 0.f), bright(n);
@@ -119,7 +120,11 @@ Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o
                 error[size_t(y) * W + x] = e;
             }
     } else {
-        const std::string var = std::string(colour) + "_variance";
+        // gpt's primal_variance, or pt's "variance" of its colour.
+        const std::string var = pilot.has("primal_variance") ? "primal_variance" : "variance";
+        if (!pilot.has(var))
+            throw ParameterError("adaptive sampling: the pilot render has neither a 'primal_variance' layer (as gpt "
+                                 "writes) nor a 'variance' layer (as pt writes)");
         const Image& v = pilot_layer(pilot, var, "a render with variances");
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) error[size_t(y) * W + x] = channel_sum(v, x, y);

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <vector>
 
 #include "gdr/integrators/bdpt.h"
 #include "gdr/integrators/gbdpt.h"
@@ -43,14 +44,40 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
     // them, so a render whose reconstructions were skipped (an aborted
     // render) still merges.
     const auto derived = [](const std::string& name) { return name.rfind("reconstruction", 0) == 0; };
+    const auto own = [](const std::string& name) { return name == "sample_density"; };  // see below
     for (const auto& name : into.names())
-        if (!other.has(name) && !derived(name))
+        if (!other.has(name) && !derived(name) && !own(name))
             throw ParameterError("merge: layer '" + name + "' is missing from the second render");
     for (const auto& name : other.names())
-        if (!into.has(name) && !derived(name))
+        if (!into.has(name) && !derived(name) && !own(name))
             throw ParameterError("merge: layer '" + name + "' is missing from the first render");
     for (const auto& name : std::vector<std::string>(into.names()))
         if (derived(name) && !other.has(name)) into.remove(name);
+    // Adaptive renders hold a count per pixel ("spp" layer), fixed by a
+    // density chosen before their samples were taken: each pixel is then
+    // weighted by its own counts, which keeps it unbiased even when the two
+    // densities differ. The density layer is kept when both share it (the
+    // merged render can then be continued); otherwise the result records
+    // that its pixels' counts come from several densities.
+    const auto is_adaptive = [](const FrameBuffer& fb) {
+        const auto it = fb.metadata().find("sample_density");
+        return fb.has("sample_density") || (it != fb.metadata().end() && it->second == "mixed");
+    };
+    const bool adaptive = is_adaptive(into) || is_adaptive(other);
+    if (adaptive) {
+        if (!into.has("spp") || !other.has("spp")) throw ParameterError("merge: an adaptive render without its 'spp' layer");
+        const bool same = into.has("sample_density") && other.has("sample_density") &&
+                          into.get("sample_density").values() == other.get("sample_density").values();
+        if (!same) {
+            into.remove("sample_density");
+            into.metadata()["sample_density"] = "mixed";
+        }
+    }
+    const size_t npix = size_t(into.width()) * size_t(into.height());
+    std::vector<double> ca(npix, double(na)), cb(npix, double(nb));  // per pixel: the two renders' counts
+    if (adaptive)
+        for (size_t p = 0; p < npix; ++p)
+            ca[p] = into.get("spp").values()[p], cb[p] = other.get("spp").values()[p];
     const double n = double(na + nb);
     // Variances first: pooling needs both means before they are overwritten.
     for (const auto& name : into.names()) {
@@ -60,13 +87,15 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
         Image& va = into.get(name);
         const Image& vb = other.get(name);
         const bool has_mean = into.has(mean_name) && into.get(mean_name).same_shape(va);
+        const size_t ch = size_t(va.channels());
         for (size_t i = 0; i < va.values().size(); ++i) {
-            double m2 = double(va.values()[i]) * double(na - 1) + double(vb.values()[i]) * double(nb - 1);
+            const double a = ca[i / ch], b = cb[i / ch], m = a + b;
+            double m2 = double(va.values()[i]) * (a - 1.0) + double(vb.values()[i]) * (b - 1.0);
             if (has_mean) {
                 const double d = double(into.get(mean_name).values()[i]) - double(other.get(mean_name).values()[i]);
-                m2 += d * d * double(na) * double(nb) / n;
+                m2 += d * d * a * b / m;
             }
-            va.values()[i] = float(m2 / std::max(1.0, n - 1.0));
+            va.values()[i] = float(m2 / std::max(1.0, m - 1.0));
         }
     }
     for (const auto& name : into.names()) {
@@ -79,8 +108,11 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
             for (size_t i = 0; i < a.values().size(); ++i) a.values()[i] += b.values()[i];
             continue;
         }
+        if (name == "sample_density") continue;  // equal in both
+        const size_t ch = size_t(a.channels());
         for (size_t i = 0; i < a.values().size(); ++i)
-            a.values()[i] = float((double(a.values()[i]) * na + double(b.values()[i]) * nb) / n);
+            a.values()[i] = float((double(a.values()[i]) * ca[i / ch] + double(b.values()[i]) * cb[i / ch]) /
+                                  (ca[i / ch] + cb[i / ch]));
     }
     into.metadata()["spp"] = std::to_string(na + nb);
 }

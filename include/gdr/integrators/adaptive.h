@@ -13,10 +13,11 @@ namespace gdr {
 /// Options of adaptive_sample_density().
 struct AdaptiveOptions {
     /// What the error is read from: the gradients' variances (dx_variance,
-    /// dy_variance: the publication's rule) or the primal's
-    /// (primal_variance: ordinary colour-based adaptive sampling).
-    enum class Source { Gradients, Primal };
-    Source source = Source::Gradients;
+    /// dy_variance: the publication's rule), the primal's (primal_variance,
+    /// or pt's variance: ordinary colour-based adaptive sampling), or Auto:
+    /// the gradients where the pilot has them, else the primal.
+    enum class Source { Auto, Gradients, Primal };
+    Source source = Source::Auto;
     double uniform = 0.25;      ///< Share of the samples spread evenly (a density floor; 0..1).
     double max_density = 8.0;   ///< Most a pixel may take, as a multiple of the mean (the publication's cap).
     double epsilon = 1e-3;      ///< Added to the squared local brightness (radiance^2): dark pixels do not take everything.

@@ -125,7 +125,9 @@ void register_builtin_integrators(Registry<Integrator>& r);
 /// Combines two renders of the same scene and integrator made with
 /// independent samples: mean layers are averaged weighted by sample counts,
 /// layers whose name ends in "variance" are pooled (per-sample variances).
-/// Both need "spp" metadata; throws ParameterError if they do not match.
+/// Adaptive renders (with a "sample_density" layer, equal in both) are
+/// weighted pixel by pixel by their "spp" layers. Both need "spp" metadata;
+/// throws ParameterError if they do not match.
 /// Layers that are not means (reconstructions) are then stale: call the
 /// integrator's update_merged() on the result.
 void merge_renders(FrameBuffer& into, const FrameBuffer& other);
