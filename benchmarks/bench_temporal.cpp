@@ -10,10 +10,15 @@
 //
 //   bench_temporal [--time T] [--frames F] [--first K] [--width W] [--ref-spp N]
 //                  [--cache DIR] [--scenes camera,object] [--strip FILE.png] [--set key=value]...
+//                  [--adaptive SHARE]
 //                  [--quick]
 //
 // --set passes an option to the spatio-temporal solve (gdr reconstruct
 // --frames --set: w_t, alpha, window, ...); norm is set per row.
+//
+// --adaptive SHARE adds rows sampled adaptively by gradient variance
+// (render_adaptive, a pilot of SHARE of each frame's time): gpt + L1, tgpt
+// per-frame L1 and tgpt + temporal L1 / L2.
 //
 // --strip FILE.png writes FILE-camera.png and FILE-object.png: the first,
 // middle and last frame (columns) of PT, gpt + L1, tgpt + temporal L1 and
@@ -34,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/png.h"
@@ -92,6 +98,7 @@ struct VideoOptions {
     std::vector<std::string> scenes{"camera", "object"};
     std::vector<std::string> temporal_sets;  // --set key=value: options of the spatio-temporal solve
     std::string strip;  // if set: a PNG per scene of three frames by method (rows) and the reference
+    double adaptive = 0.0;  // > 0: also rows of adaptively sampled gpt and tgpt with this pilot share
 };
 
 // A montage: rows of images (all one shape), 2 pixels of black between them.
@@ -118,8 +125,10 @@ SceneFile frame_scene(const std::string& path, int k, int width) {
 // One frame by `integrator` as `gdr render --frames` renders it: the frame's
 // seed (and, for tgpt, the next frame's and the replay map), its motion layers.
 // Returns the frame and the render's seconds.
+// With `adaptive` > 0 the frame is sampled adaptively (render_adaptive) with that pilot share.
 std::pair<FrameBuffer, double> render_frame(const std::string& path, int k, int width, const std::string& integrator,
-                                            const Params& params, double time, long long spp, uint64_t base_seed) {
+                                            const Params& params, double time, long long spp, uint64_t base_seed,
+                                            double adaptive = 0.0) {
     SceneFile sf = frame_scene(path, k, width);
     auto integ = integrator_registry().create(integrator, params);
     RenderSettings st;
@@ -133,7 +142,10 @@ std::pair<FrameBuffer, double> render_frame(const std::string& path, int k, int 
         st.frame_sampling = &fs;
     }
     FrameBuffer fb;
-    const RenderStats rs = integ->render(*sf.scene, st, fb);
+    AdaptiveRender ad;
+    ad.pilot = adaptive;
+    const RenderStats rs =
+        adaptive > 0.0 ? render_adaptive(*integ, *sf.scene, st, fb, ad) : integ->render(*sf.scene, st, fb);
     add_motion_layers(fb, *sf.animation, *sf.scene, k);
     return {std::move(fb), rs.seconds};
 }
@@ -172,7 +184,7 @@ void print_row(const std::string& scene, const Row& r, const std::vector<Image>&
     for (size_t i = 0; i < refs.size(); ++i) rel += relmse(r.frames[i], refs[i]);
     rel /= double(refs.size());
     const double flicker = temporal_relmse(r.frames, refs);
-    std::printf("%-7s %-20s relMSE %.5f  flicker %.5f (%.2fx PT's)  render %.2f s  reconstruct %.3f s per frame\n",
+    std::printf("%-7s %-27s relMSE %.5f  flicker %.5f (%.2fx PT's)  render %.2f s  reconstruct %.3f s per frame\n",
                 scene.c_str(), r.method.c_str(), rel, flicker, pt_flicker > 0 ? pt_flicker / flicker : 1.0,
                 r.render_s, r.reconstruct_s);
     std::fflush(stdout);
@@ -190,14 +202,15 @@ int run_videos(const VideoOptions& o) {
         // of `methods` ({row name, reconstructor; "" = the "color" layer}) timed
         // on its own.
         const auto per_frame = [&](const std::string& integrator,
-                                   const std::vector<std::pair<std::string, std::string>>& methods) {
+                                   const std::vector<std::pair<std::string, std::string>>& methods,
+                                   double adaptive = 0.0) {
             std::vector<Row> rows(methods.size());
             for (size_t m = 0; m < methods.size(); ++m) rows[m].method = methods[m].first;
             std::vector<FrameBuffer> fbs;
             Params p(integrator);
             if (integrator != "pt") p.set("reconstruct", "none");
             for (int k = o.first; k < o.first + o.frames; ++k) {
-                auto [fb, render_s] = render_frame(path, k, o.width, integrator, p, o.time, 0, 1);
+                auto [fb, render_s] = render_frame(path, k, o.width, integrator, p, o.time, 0, 1, adaptive);
                 for (size_t m = 0; m < methods.size(); ++m) {
                     rows[m].render_s += render_s / o.frames;
                     if (methods[m].second.empty()) {
@@ -223,27 +236,42 @@ int run_videos(const VideoOptions& o) {
         shown.push_back(gpt[0]);
         auto [tgpt, tgpt_fbs] = per_frame("tgpt", {{"tgpt per-frame L1", "poisson-l1"}});
         print_row(scene, tgpt[0], refs, pt_flicker);
-        for (TemporalNorm norm : {TemporalNorm::l1, TemporalNorm::l2}) {
-            Params tp("bench_temporal --set");
-            for (const std::string& kv : o.temporal_sets) tp.set_from_text(kv);
-            TemporalOptions to = temporal_options(tp);
-            to.norm = norm;
-            Row r;
-            r.method = norm == TemporalNorm::l1 ? "tgpt + temporal L1" : "tgpt + temporal L2";
-            r.render_s = tgpt[0].render_s;
-            const auto t0 = std::chrono::steady_clock::now();
-            TemporalReconstructor rec(to);
-            for (size_t i = 0; i < tgpt_fbs.size(); ++i) {
-                FrameBuffer fb = tgpt_fbs[i];
-                if (i + 1 < tgpt_fbs.size()) add_temporal_difference(fb, tgpt_fbs[i + 1], "frame", "next frame");
-                rec.push(temporal_frame(fb, "frame " + std::to_string(o.first + int(i))));
+        // The spatio-temporal solves of a tgpt video, one row per norm.
+        const auto temporal_rows = [&](const std::string& label, const Row& frames_row,
+                                       const std::vector<FrameBuffer>& fbs) {
+            std::vector<Row> out;
+            for (TemporalNorm norm : {TemporalNorm::l1, TemporalNorm::l2}) {
+                Params tp("bench_temporal --set");
+                for (const std::string& kv : o.temporal_sets) tp.set_from_text(kv);
+                TemporalOptions to = temporal_options(tp);
+                to.norm = norm;
+                Row r;
+                r.method = label + (norm == TemporalNorm::l1 ? " + temporal L1" : " + temporal L2");
+                r.render_s = frames_row.render_s;
+                const auto t0 = std::chrono::steady_clock::now();
+                TemporalReconstructor rec(to);
+                for (size_t i = 0; i < fbs.size(); ++i) {
+                    FrameBuffer fb = fbs[i];
+                    if (i + 1 < fbs.size()) add_temporal_difference(fb, fbs[i + 1], "frame", "next frame");
+                    rec.push(temporal_frame(fb, "frame " + std::to_string(o.first + int(i))));
+                    while (rec.ready()) r.frames.push_back(rec.pop());
+                }
+                rec.finish();
                 while (rec.ready()) r.frames.push_back(rec.pop());
+                r.reconstruct_s = seconds_since(t0) / o.frames;
+                print_row(scene, r, refs, pt_flicker);
+                out.push_back(std::move(r));
             }
-            rec.finish();
-            while (rec.ready()) r.frames.push_back(rec.pop());
-            r.reconstruct_s = seconds_since(t0) / o.frames;
-            print_row(scene, r, refs, pt_flicker);
-            if (norm == TemporalNorm::l1) shown.push_back(r);
+            return out;
+        };
+        shown.push_back(temporal_rows("tgpt", tgpt[0], tgpt_fbs)[0]);
+        if (o.adaptive > 0.0) {
+            // Adaptive sampling by gradient variance (each frame its own pilot).
+            auto [agpt, agpt_fbs] = per_frame("gpt", {{"gpt adaptive + L1", "poisson-l1"}}, o.adaptive);
+            print_row(scene, agpt[0], refs, pt_flicker);
+            auto [atgpt, atgpt_fbs] = per_frame("tgpt", {{"tgpt adaptive per-frame L1", "poisson-l1"}}, o.adaptive);
+            print_row(scene, atgpt[0], refs, pt_flicker);
+            temporal_rows("tgpt adaptive", atgpt[0], atgpt_fbs);
         }
         if (!o.strip.empty()) {
             // Rows: PT, gpt + L1, tgpt + temporal L1, the reference; columns: first, middle, last frame.
@@ -330,6 +358,7 @@ int main(int argc, char** argv) {
         else if (a == "--cache") vo.cache = next();
         else if (a == "--strip") vo.strip = next();
         else if (a == "--set") vo.temporal_sets.push_back(next());
+        else if (a == "--adaptive") vo.adaptive = std::stod(next());
         else if (a == "--scenes") {
             vo.scenes.clear();
             std::string list = next();
