@@ -109,7 +109,7 @@ TEST_CASE("adaptive: unequal per-pixel counts keep pt and gpt unbiased", "[adapt
     auto scene = test::small_box("Original", kRes);
     const Image d = test_density(kRes);
     const int runs = 48;
-    for (const char* integrator : {"pt", "gpt"}) {
+    for (const char* integrator : {"pt", "gpt", "tgpt"}) {
         INFO(integrator);
         const std::string layer = std::string(integrator) == "pt" ? "color" : "primal";
         std::vector<FrameBuffer> uniform, adaptive, wrong;
@@ -249,6 +249,22 @@ TEST_CASE("adaptive: render_adaptive spends a pilot share and keeps the budget",
     CHECK(total / (24.0 * 24.0) == Approx(12.0).epsilon(0.1));
     CHECK(double(rs.samples) / (24.0 * 24.0) == Approx(16.0).epsilon(0.1));
     CHECK(pilot_seed(4) != 4);
+
+    // A time budget: the pilot takes at least 4 passes and about its share
+    // of the time, and the render the rest.
+    RenderSettings timed;
+    timed.time_budget = 0.6;
+    timed.seed = 5;
+    FrameBuffer tb;
+    const RenderStats ts = render_adaptive(*integ, *scene, timed, tb, ad);
+    const long long pilot_passes = std::stoll(tb.metadata().at("adaptive_pilot_spp"));
+    const double pilot_s = std::stod(tb.metadata().at("adaptive_pilot_seconds"));
+    UNSCOPED_INFO("pilot " << pilot_passes << " passes in " << pilot_s << " s, render " << ts.spp << " passes, "
+                           << ts.seconds << " s in all");
+    CHECK(pilot_passes >= 4);
+    CHECK(pilot_s < 0.5 * timed.time_budget);
+    CHECK(ts.spp > pilot_passes);
+    CHECK(ts.seconds < timed.time_budget + 0.3);
     ad.pilot = 0.0;
     CHECK_THROWS_WITH(render_adaptive(*integ, *scene, st, fb, ad), Contains("pilot's share"));
 }

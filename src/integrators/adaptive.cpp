@@ -164,6 +164,9 @@ Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o
     return density;
 }
 
+// Fewest passes a timed pilot takes: per-sample variances from fewer are mostly noise.
+constexpr long long kMinPilotSpp = 4;
+
 uint64_t pilot_seed(uint64_t seed) { return mix64(seed ^ 0x70696c6f74ull); }  // "pilot"
 
 RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const RenderSettings& st, FrameBuffer& out,
@@ -180,20 +183,37 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
     pilot.first_sample = 0;
     pilot.frame_sampling = nullptr;  // the pilot estimates variances only: no seed sharing
     long long pilot_spp = 0;
-    if (timed) {
-        pilot.time_budget = ad.pilot * st.time_budget;
-    } else {
+    if (!timed) {
         pilot_spp = std::clamp((long long)std::llround(ad.pilot * double(st.spp)), 1LL, st.spp - 1);
         pilot.spp = pilot_spp;
+    } else {
+        // At least kMinPilotSpp passes, or the variances are mostly noise; then
+        // whole passes until the pilot's share of the time is spent.
+        pilot.spp = kMinPilotSpp;
+        pilot.time_budget = 0.0;
     }
     const auto t0 = std::chrono::steady_clock::now();
     FrameBuffer pilot_fb;
     const double share = timed ? ad.pilot : double(pilot_spp) / double(st.spp);
-    RenderStats ps = integrator.render(scene, pilot, pilot_fb, progress ? ProgressFn([&](const Progress& p) {
+    const ProgressFn pilot_progress = progress ? ProgressFn([&](const Progress& p) {
         Progress q = p;
         q.fraction = share * p.fraction;
         progress(q);
-    }) : ProgressFn());
+    }) : ProgressFn();
+    RenderStats ps = integrator.render(scene, pilot, pilot_fb, pilot_progress);
+    if (timed) {
+        const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (spent < ad.pilot * st.time_budget && !(st.cancel && st.cancel->load())) {
+            RenderSettings more = pilot;
+            more.spp = 0;
+            more.first_sample = ps.spp;
+            more.time_budget = ad.pilot * st.time_budget - spent;
+            FrameBuffer rest;
+            const RenderStats ms = integrator.render(scene, more, rest, pilot_progress);
+            merge_renders(pilot_fb, rest);
+            ps.spp += ms.spp, ps.samples += ms.samples, ps.rays += ms.rays, ps.nonfinite += ms.nonfinite;
+        }
+    }
     const Image density = adaptive_sample_density(pilot_fb, ad.density);
     pilot_fb = FrameBuffer();
     const double pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -44,8 +44,8 @@ struct AdaptiveRender {
 };
 
 /// Renders with adaptive sampling in two steps: a pilot render of uniform
-/// samples with a seed of its own (a share of the samples or of the time
-/// budget), whose layers give the sample density (adaptive_sample_density()),
+/// samples with a seed of its own (a share of the samples, or of the time
+/// budget but at least 4 passes), whose layers give the sample density (adaptive_sample_density()),
 /// then the render itself with that density and the rest of the budget. The
 /// pilot's samples are not kept: the density is then independent of the
 /// samples it distributes, so each pixel's estimate is exactly unbiased
