@@ -12,6 +12,7 @@
 // Usage: bench_adaptive [--quick] [--scenes a,b] [--width W] [--budget S]
 //          [--runs N] [--pilot SHARE] [--ref-spp N] [--cache DIR] [--threads N]
 //          [--density key=value]...   (AdaptiveOptions: uniform, max, epsilon, median, source)
+//          [--keep-pilot]             (AdaptiveRender::keep_pilot)
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -52,6 +53,7 @@ struct Options {
     long long ref_spp = 1024;
     std::string cache = eval::default_reference_cache();
     AdaptiveOptions density;  // --density key=value
+    bool keep_pilot = false;  // --keep-pilot: AdaptiveRender::keep_pilot
 };
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
@@ -86,6 +88,7 @@ Options parse(int argc, char** argv) {
         else if (opt == "--budget") o.budget = a.real_value(opt);
         else if (opt == "--runs") o.runs = int(a.int_value(opt, 1, 100));
         else if (opt == "--pilot") o.pilot = a.real_value(opt);
+        else if (opt == "--keep-pilot") o.keep_pilot = true;
         else if (opt == "--ref-spp") o.ref_spp = a.int_value(opt, 1, 1 << 20);
         else if (opt == "--cache") o.cache = a.value(opt);
         else if (opt == "--density") {
@@ -151,6 +154,7 @@ int main(int argc, char** argv) try {
     AdaptiveRender ad;
     ad.pilot = o.pilot;
     ad.density = o.density;
+    ad.keep_pilot = o.keep_pilot;
     for (const SceneSpec& spec : o.scenes) {
         const auto scene = eval::load_scene_at_width(spec.path, o.width);
         const Image ref = reference(o, spec, *scene).get("color");

@@ -215,7 +215,7 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
         }
     }
     const Image density = adaptive_sample_density(pilot_fb, ad.density);
-    pilot_fb = FrameBuffer();
+    if (!ad.keep_pilot) pilot_fb = FrameBuffer();
     const double pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     RenderSettings main = st;
@@ -229,6 +229,12 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
         q.seconds += pilot_seconds;
         progress(q);
     }) : ProgressFn());
+    if (ad.keep_pilot) {
+        // Each pixel weighted by its own counts in both renders.
+        merge_renders(out, pilot_fb);
+        integrator.update_merged(out);
+        out.metadata()["adaptive_pilot_kept"] = "true";
+    }
     out.metadata()["adaptive_pilot_spp"] = std::to_string(ps.spp);
     out.metadata()["adaptive_pilot_seconds"] = fmt::format("{:.3f}", pilot_seconds);
     rs.seconds += pilot_seconds;

@@ -27,6 +27,9 @@ constexpr int kBaseFloat = 3 * kAux + 7;
 /// variances (radiance, radiance^2), from the slots of one set of G-PT samples.
 struct GradientHalf {
     Image primal, primal_var, dx, dy, dx_var, dy_var;
+    /// With combined shifts: each shift's own gradients and their variances
+    /// (index 0: the first shift), of which dx, dy are the combination.
+    Image shift_dx[2], shift_dy[2], shift_dx_var[2], shift_dy_var[2];
 };
 
 /// Gradient-domain path tracing (Kettunen, Manzi, Aittala, Lehtinen, Durand
@@ -36,8 +39,23 @@ class GradientPathTracer : public TiledIntegrator {
 public:
     explicit GradientPathTracer(const Params& p, std::string who = "gpt") : who_(std::move(who)) {
         const std::string shift_name = p.get_string("shift", "half-vector");
-        shift_ = shift_registry().create(shift_name, Params("shift"));
         shift_name_ = shift_name;
+        if (shift_name == "combined") {
+            // Thesis section 4.3.6: several shifts of one base path, their
+            // gradients combined by inverse variance in finalize.
+            const std::string list = p.get_string("shifts", "half-vector,replay-reconnect");
+            const size_t comma = list.find(',');
+            if (comma == std::string::npos || list.find(',', comma + 1) != std::string::npos)
+                throw ParameterError(who_ + ": shifts must name two shifts, 'first,second', got '" + list + "'");
+            combined_names_[0] = list.substr(0, comma), combined_names_[1] = list.substr(comma + 1);
+            if (combined_names_[0] == combined_names_[1] || combined_names_[0] == "combined" ||
+                combined_names_[1] == "combined")
+                throw ParameterError(who_ + ": shifts must name two different registered shifts, got '" + list + "'");
+            shift_ = shift_registry().create(combined_names_[0], Params("shift"));
+            shift2_ = shift_registry().create(combined_names_[1], Params("shift"));
+        } else {
+            shift_ = shift_registry().create(shift_name, Params("shift"));
+        }
         config_.threshold = float(p.get_real("threshold", 0.001));
         config_.probabilistic = p.get_choice("classification", "hard", {"hard", "probabilistic"}) == "probabilistic";
         mis_.heuristic = p.get_choice("mis", "power", {"power", "balance"}) == "power" ? MisHeuristic::Power
@@ -53,7 +71,8 @@ public:
     }
 
     std::string describe() const override {
-        return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
+        return "shift=" + shift_name_ + (shift2_ ? "\nshifts=" + combined_names_[0] + "," + combined_names_[1] : "") +
+               "\nthreshold=" + fmt::format("{}", config_.threshold) +
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_vertices) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
@@ -79,10 +98,19 @@ protected:
         // The base-only primal is accumulated only where it is the output: a
         // slot costs 48 bytes a pixel of accumulators, zeroed every render.
         if (!primal_both_) s.push_back({prefix + "base", 3, true});
+        if (shift2_) {
+            // The second shift's one-sided gradients, and the products of the
+            // two shifts' (their covariance, which the combination needs:
+            // both share the base path's f(x)).
+            for (int d = 0; d < kDirs; ++d) s.push_back({prefix + "2" + kGradSlot[d], 3, true});
+            for (int d = 0; d < kDirs; ++d) s.push_back({prefix + "x" + kGradSlot[d], 3, false});
+        }
         return s;
     }
     /// Floats one sample writes for half_slots().
-    int half_floats() const { return kBaseFloat + (primal_both_ ? 0 : 3); }
+    int half_floats() const { return extra_float() + (shift2_ ? 24 : 0); }
+    // First float of the combined shifts' slots.
+    int extra_float() const { return kBaseFloat + (primal_both_ ? 0 : 3); }
 
     void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
         SampleJob job{px, py, sampler};
@@ -100,6 +128,7 @@ protected:
         struct Scratch {
             CameraPath path[kMaxBatch];
             OffsetPath offsets[kMaxBatch][kDirs];
+            OffsetPath offsets2[kMaxBatch][kDirs];  // the second shift's (combined shifts)
             CameraPacket packet[kMaxBatch];
             bool inside[kMaxBatch][kDirs];
             BaseTerms terms;
@@ -128,12 +157,27 @@ protected:
         for (int j = 0; j < n; ++j)
             continue_camera_path(scene, jobs[j].sampler, trace_, scratch.path[j], scratch.packet[j].rays[0],
                                  scratch.packet[j].hit[0]);
-        for (int j = 0; j < n; ++j)
+        if (shift2_)
+            // Both shifts start from the same offset camera hits.
+            for (int j = 0; j < n; ++j)
+                for (int d = 0; d < kDirs; ++d) {
+                    scratch.offsets2[j][d] = scratch.offsets[j][d];
+                    scratch.offsets2[j][d].rays = 0;  // the camera ray is counted once
+                }
+        for (int j = 0; j < n; ++j) {
             shift_from_camera_packet(scene, *shift_, config_, scratch.path[j], scratch.packet[j], scratch.offsets[j]);
+            if (shift2_)
+                shift_from_camera_packet(scene, *shift2_, config_, scratch.path[j], scratch.packet[j],
+                                         scratch.offsets2[j]);
+        }
         for (int j = 0; j < n; ++j) {
             rays += scratch.path[j].rays;
-            for (int d = 0; d < kDirs; ++d) rays += scratch.inside[j][d] ? scratch.offsets[j][d].rays : 0;
-            estimate(scene, jobs[j].x, jobs[j].y, scratch.path[j], scratch.offsets[j], scratch.inside[j],
+            for (int d = 0; d < kDirs; ++d)
+                rays += scratch.inside[j][d]
+                            ? scratch.offsets[j][d].rays + (shift2_ ? scratch.offsets2[j][d].rays : 0)
+                            : 0;
+            estimate(scene, jobs[j].x, jobs[j].y, scratch.path[j], scratch.offsets[j],
+                     shift2_ ? scratch.offsets2[j] : nullptr, scratch.inside[j],
                      scratch.terms, out + size_t(j) * stride);
         }
     }
@@ -183,12 +227,81 @@ protected:
                 }
             }
         });
+        if (shift2_) combine_shifts(acc, prefix, h);
         if (!primal_both_) {
             std::vector<Image> base = acc.images({{prefix + "base"}, {prefix + "base", true}});
             h.primal = std::move(base[0]);
             h.primal_var = std::move(base[1]);
         }
         return h;
+    }
+
+    /// Combined shifts: replaces h's gradients (the first shift's) by the
+    /// minimum-variance combination w g1 + (1 - w) g2 of both shifts' per
+    /// edge, w = (v2 - c) / (v1 + v2 - 2c) from their variances v1, v2 and
+    /// covariance c (both use the base path's f(x), so c is far from 0),
+    /// keeping each shift's own gradients in h.shift_*. The moments are
+    /// averaged over the 3x3 edges around each one before they weigh it, so
+    /// that a weight hardly depends on the values it weighs (a weight that
+    /// did would bias the combination).
+    void combine_shifts(const Accumulated& acc, const std::string& prefix, GradientHalf& h) const {
+        const int W = acc.width, H = acc.height;
+        int g2[kDirs], gx[kDirs];
+        for (int d = 0; d < kDirs; ++d)
+            g2[d] = acc.slot(prefix + "2" + kGradSlot[d]), gx[d] = acc.slot(prefix + "x" + kGradSlot[d]);
+        h.shift_dx[0] = h.dx, h.shift_dy[0] = h.dy, h.shift_dx_var[0] = h.dx_var, h.shift_dy_var[0] = h.dy_var;
+        for (Image* im : {&h.shift_dx[1], &h.shift_dy[1], &h.shift_dx_var[1], &h.shift_dy_var[1]}) *im = Image(W, H, 3);
+        Image cov_x(W, H, 3), cov_y(W, H, 3);  // per-sample covariances of the two shifts' gradients
+        const int g1[kDirs] = {acc.slot(prefix + kGradSlot[0]), acc.slot(prefix + kGradSlot[1]),
+                               acc.slot(prefix + kGradSlot[2]), acc.slot(prefix + kGradSlot[3])};
+        // Per-sample covariance of the two shifts' one-sided gradients at (x, y) in direction d.
+        const auto cov = [&](int d, int x, int y) {
+            const double n = double(acc.count(x, y));
+            Color c;
+            for (int k = 0; k < 3; ++k) {
+                const double m = double(acc.mean(gx[d], x, y, k)) -
+                                 double(acc.mean(g1[d], x, y, k)) * double(acc.mean(g2[d], x, y, k));
+                (&c.r)[k] = n > 1.0 ? float(m * n / (n - 1.0)) : 0.f;
+            }
+            return c;
+        };
+        tbb::parallel_for(0, H, [&](int y) {
+            for (int x = 0; x < W; ++x) {
+                // Neighbours' per-sample moments scaled by the count ratio, as in finalize_half().
+                if (x + 1 < W) {
+                    const float q = float(double(acc.count(x, y)) / double(acc.count(x + 1, y)));
+                    h.shift_dx[1].set_rgb(x, y, acc.mean_rgb(g2[0], x, y) - acc.mean_rgb(g2[1], x + 1, y));
+                    h.shift_dx_var[1].set_rgb(x, y, acc.variance_rgb(g2[0], x, y) + q * acc.variance_rgb(g2[1], x + 1, y));
+                    cov_x.set_rgb(x, y, cov(0, x, y) + q * cov(1, x + 1, y));
+                }
+                if (y + 1 < H) {
+                    const float q = float(double(acc.count(x, y)) / double(acc.count(x, y + 1)));
+                    h.shift_dy[1].set_rgb(x, y, acc.mean_rgb(g2[2], x, y) - acc.mean_rgb(g2[3], x, y + 1));
+                    h.shift_dy_var[1].set_rgb(x, y, acc.variance_rgb(g2[2], x, y) + q * acc.variance_rgb(g2[3], x, y + 1));
+                    cov_y.set_rgb(x, y, cov(2, x, y) + q * cov(3, x, y + 1));
+                }
+            }
+        });
+        const auto blend = [&](const Image& a, const Image& b, const Image& va, const Image& vb, const Image& c,
+                               Image& out, Image& out_var) {
+            tbb::parallel_for(0, H, [&](int y) {
+                for (int x = 0; x < W; ++x)
+                    for (int k = 0; k < 3; ++k) {
+                        double s1 = 0, s2 = 0, s12 = 0;
+                        for (int j = std::max(0, y - 1); j <= std::min(H - 1, y + 1); ++j)
+                            for (int i = std::max(0, x - 1); i <= std::min(W - 1, x + 1); ++i)
+                                s1 += va.at(i, j, k), s2 += vb.at(i, j, k), s12 += c.at(i, j, k);
+                        const double den = s1 + s2 - 2.0 * s12;
+                        const double w = den > 0.0 ? std::clamp((s2 - s12) / den, 0.0, 1.0) : 0.5;
+                        const double v1 = va.at(x, y, k), v2 = vb.at(x, y, k), v12 = c.at(x, y, k);
+                        out.at(x, y, k) = float(w * a.at(x, y, k) + (1.0 - w) * b.at(x, y, k));
+                        out_var.at(x, y, k) =
+                            float(std::max(0.0, w * w * v1 + (1.0 - w) * (1.0 - w) * v2 + 2.0 * w * (1.0 - w) * v12));
+                    }
+            });
+        };
+        blend(h.shift_dx[0], h.shift_dx[1], h.shift_dx_var[0], h.shift_dx_var[1], cov_x, h.dx, h.dx_var);
+        blend(h.shift_dy[0], h.shift_dy[1], h.shift_dy_var[0], h.shift_dy_var[1], cov_y, h.dy, h.dy_var);
     }
 
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
@@ -206,6 +319,14 @@ protected:
         out.set("primal_variance", std::move(h.primal_var));
         out.set("dx_variance", std::move(h.dx_var));
         out.set("dy_variance", std::move(h.dy_var));
+        for (int i = 0; i < 2 && shift2_; ++i) {
+            // Each shift's own gradients, as a render with that shift alone would write them.
+            const std::string& n = combined_names_[i];
+            out.set("dx_" + n, std::move(h.shift_dx[i]));
+            out.set("dy_" + n, std::move(h.shift_dy[i]));
+            out.set("dx_" + n + "_variance", std::move(h.shift_dx_var[i]));
+            out.set("dy_" + n + "_variance", std::move(h.shift_dy_var[i]));
+        }
         // The weighted reconstruction reads each pixel's own count.
         if (acc.adaptive()) out.set("spp", acc.count_image());
         if (acc.derived) recon_.add(out, acc.spp, who_);
@@ -232,7 +353,7 @@ private:
 
     // The sample's slots from its traced base path (of pixel (px, py)) and offsets.
     void estimate(const Scene& scene, int px, int py, const CameraPath& path, const OffsetPath* offsets,
-                  const bool* inside, BaseTerms& terms, float* out) const {
+                  const OffsetPath* offsets2, const bool* inside, BaseTerms& terms, float* out) const {
         if (path.size() <= 1) return;
         auto put = [&](int slot, const Color& c) {
             out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
@@ -272,6 +393,15 @@ private:
             put(kSelf, 0.25f * e.base);
             put(kGrad + d, e.gradient);
             put(kSplat + d, 0.25f * e.offset);
+            if (offsets2) {
+                // The second shift's gradient of the same base path (its primal
+                // share is not used: the first shift's pairs estimate the primal).
+                const Color g2 = evaluate_pair(scene, path, terms, &offsets2[d], mis).gradient;
+                float* o = out + extra_float();
+                o[3 * d] = g2.r, o[3 * d + 1] = g2.g, o[3 * d + 2] = g2.b;
+                o[12 + 3 * d] = e.gradient.r * g2.r, o[13 + 3 * d] = e.gradient.g * g2.g;
+                o[14 + 3 * d] = e.gradient.b * g2.b;
+            }
         }
         put(kDirect, terms.v[1].emitted);
         // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
@@ -291,6 +421,8 @@ private:
     }
 
     std::unique_ptr<Shift> shift_;
+    std::unique_ptr<Shift> shift2_;  // combined shifts: the second (nullptr otherwise)
+    std::string combined_names_[2];
     std::string shift_name_;
     ShiftConfig config_;
     GradientMis mis_;

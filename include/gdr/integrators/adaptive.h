@@ -41,6 +41,12 @@ Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o
 struct AdaptiveRender {
     double pilot = 0.125;     ///< Share of the budget (samples or seconds) given to the pilot render (0..0.5).
     AdaptiveOptions density;  ///< How the pilot becomes a density.
+    /// Also keep the pilot's samples, merged pixel by pixel into the result
+    /// (as the publication does). Consistent but not unbiased: a pixel whose
+    /// pilot was unlucky gets a density that depends on it. The result is
+    /// then of mixed density ("sample_density" metadata "mixed") and cannot
+    /// be resumed.
+    bool keep_pilot = false;
 };
 
 /// Renders with adaptive sampling in two steps: a pilot render of uniform
