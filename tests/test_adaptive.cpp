@@ -265,6 +265,15 @@ TEST_CASE("adaptive: render_adaptive spends a pilot share and keeps the budget",
     CHECK(pilot_s < 0.5 * timed.time_budget);
     CHECK(ts.spp > pilot_passes);
     CHECK(ts.seconds < timed.time_budget + 0.3);
+    // Keeping the pilot: each pixel holds the pilot's 4 samples and its own.
+    AdaptiveRender keep = ad;
+    keep.keep_pilot = true;
+    FrameBuffer kb;
+    render_adaptive(*integ, *scene, st, kb, keep);
+    CHECK(kb.metadata().at("sample_density") == "mixed");
+    CHECK(kb.metadata().at("adaptive_pilot_kept") == "true");
+    CHECK(kb.has("reconstruction_l1"));
+    CHECK(kb.get("spp").values()[37] == fb.get("spp").values()[37] + 4.f);
     ad.pilot = 0.0;
     CHECK_THROWS_WITH(render_adaptive(*integ, *scene, st, fb, ad), Contains("pilot's share"));
 }
