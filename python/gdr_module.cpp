@@ -39,6 +39,7 @@
 #include "gdr/core/error.h"
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
+#include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/scene_file.h"
@@ -212,8 +213,14 @@ py::object make_layers(gdr::FrameBuffer& fb, py::object stats) {
 /// gdr.render: renders on a thread of its own while this one waits without the GIL (see the file comment).
 py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std::string>& integrator,
                   std::optional<long long> spp, std::optional<long long> seed, int threads, const py::object& params,
-                  const py::object& progress, double time, long long first_sample) {
+                  const py::object& progress, double time, long long first_sample, double adaptive) {
     const gdr::SceneFile& sf = scene->sf;
+    if (!(adaptive == 0.0 || (adaptive > 0.0 && adaptive <= 0.5)))
+        throw gdr::ParameterError("render: adaptive is the pilot's share of the budget, above 0 and at most 0.5 (0: "
+                                  "uniform sampling), got " + std::to_string(adaptive));
+    if (adaptive > 0.0 && first_sample > 0)
+        throw gdr::ParameterError("render: adaptive sampling chooses its own density, so it cannot continue a "
+                                  "sequence (first_sample)");
     if (spp && *spp < 1) throw gdr::ParameterError("render: spp must be at least 1, got " + std::to_string(*spp));
     if (seed && *seed < 0) throw gdr::ParameterError("render: seed must be >= 0, got " + std::to_string(*seed));
     if (threads < 0) throw gdr::ParameterError("render: threads must be >= 0 (0: all cores), got " + std::to_string(threads));
@@ -259,7 +266,13 @@ py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std
         py::gil_scoped_release nogil;
         std::thread worker([&] {
             try {
-                job.stats = integ->render(*sf.scene, st, job.fb, report);
+                if (adaptive > 0.0) {
+                    gdr::AdaptiveRender ad;
+                    ad.pilot = adaptive;
+                    job.stats = gdr::render_adaptive(*integ, *sf.scene, st, job.fb, ad, report);
+                } else {
+                    job.stats = integ->render(*sf.scene, st, job.fb, report);
+                }
             } catch (...) {
                 job.error = std::current_exception();
             }
@@ -550,9 +563,9 @@ PYBIND11_MODULE(gdr, m) {
     m.def("render", &render, py::arg("scene"), py::kw_only(), py::arg("integrator") = py::none(),
           py::arg("spp") = py::none(), py::arg("seed") = py::none(), py::arg("threads") = 0,
           py::arg("params") = py::none(), py::arg("progress") = py::none(), py::arg("time") = 0.0,
-          py::arg("first_sample") = 0,
+          py::arg("first_sample") = 0, py::arg("adaptive") = 0.0,
           "render(scene, *, integrator=None, spp=None, seed=None, threads=0, params=None, progress=None,\n"
-          "       time=0.0, first_sample=0) -> gdr.Layers\n\n"
+          "       time=0.0, first_sample=0, adaptive=0.0) -> gdr.Layers\n\n"
           "Renders the scene and returns its layers ('color', and for gpt 'primal', 'dx', 'dy',\n"
           "'direct', 'reconstruction_l1', ...) as float32 arrays (height, width, channels) with\n"
           "the statistics in .stats (gdr.RenderStats: spp, samples, rays, seconds) and the\n"
@@ -565,6 +578,8 @@ PYBIND11_MODULE(gdr, m) {
           "the render advances, and once at its end.\n"
           "time: > 0 renders whole passes until that many seconds have passed, instead of spp.\n"
           "first_sample: the index of the first sample per pixel (continuing a sequence).\n"
+          "adaptive: > 0 samples adaptively (gdr render --adaptive): a pilot of that share of the\n"
+          "budget sets each pixel's density; 'spp' and 'sample_density' record counts and density.\n"
           "The GIL is released while rendering. Ctrl-C (KeyboardInterrupt), or any exception\n"
           "raised by the progress callback, stops the render within about a second; the\n"
           "exception is raised when the render has stopped, and the partial image is discarded.");

@@ -94,6 +94,19 @@ class RenderMatchesTheTool(unittest.TestCase):
         self.assertTrue(np.all(img["spp"] == 5))
         self.assertEqual(set(img), {"color", "albedo", "normal", "depth", "variance", "spp"})
 
+    @needs_cli
+    def test_adaptive_sampling_equals_the_tool(self):
+        path = os.path.join(OUT, "adaptive.exr")
+        run_cli("render", SMALL, "--integrator", "gpt", "--spp", "8", "--seed", "2", "--adaptive", "0.25", "-o", path)
+        scene = gdr.load_scene(SMALL)
+        img = gdr.render(scene, integrator="gpt", spp=8, seed=2, adaptive=0.25)
+        assert_same_layers(self, gdr.read_exr(path), img)
+        self.assertIn("sample_density", img)
+        self.assertEqual(img.metadata["adaptive_pilot_spp"], "2")
+        self.assertGreater(img["spp"].max(), img["spp"].min())  # the counts differ from pixel to pixel
+        with self.assertRaises(gdr.ParameterError):
+            gdr.render(scene, spp=8, adaptive=0.9)
+
 
 class Progress(unittest.TestCase):
     def test_the_callback_runs_on_the_calling_thread_and_ends_at_one(self):
