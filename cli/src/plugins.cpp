@@ -27,9 +27,9 @@ PluginLoad load_once() {
         // libtorch's OpenMP threads spin after each parallel region by
         // default, taking CPU from the tool's own threads (the EXR write after
         // the inference): gdr reconstruct --method neural of a 1280x720 render
-        // took 4.5-4.9 s of user CPU so and 3.5-3.8 s with PASSIVE. OpenMP
-        // reads the variable when it is loaded, with the plugin; a value the
-        // user set is kept.
+        // took 4.5-4.9 s of user CPU (6.2-6.9 s wall) without it and 3.5-3.8 s
+        // (5.2-5.8 s wall) with PASSIVE. OpenMP reads the variable when it is
+        // loaded, with the plugin; a value the user set is kept.
         setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
         // RTLD_LOCAL: the plugin's own copy of libgdr must not take the place
         // of the tool's symbols, nor theirs its own.
@@ -49,7 +49,7 @@ PluginLoad load_once() {
         }
         if (std::strcmp(abi(), GDR_PLUGIN_ABI) != 0) {
             r.error = std::string("it was built for ") + abi() + ", this gdr is " + GDR_PLUGIN_ABI +
-                      " (build and install both from one source tree)";
+                      " (build and install the two together)";
             dlclose(handle);
             return r;
         }
@@ -104,7 +104,7 @@ void require_reconstructor(const std::string& method, const std::string& context
     throw ParameterError(context + ": the neural reconstructor was not built (" + where +
                          "). It needs libtorch: run scripts/install-deps.sh, which installs libtorch-dev, then configure "
                          "and build gdr again with GDR_BUILD_NEURAL=ON (the default); CMake then prints 'neural "
-                         "reconstructor: built'. GDR_PLUGIN_PATH=DIR[:DIR...] sets where the plugin is looked for.");
+                         "reconstructor: built'. GDR_PLUGIN_PATH=DIR[:DIR...] sets where the plugin is looked for");
 }
 
 void require_reconstructors_of(const Params& integrator_params, const std::string& context) {
