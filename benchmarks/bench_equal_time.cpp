@@ -1,5 +1,6 @@
 // Equal-time comparison of PT, G-PT + L1, G-PT + L2, G-PT + variance-weighted
-// Poisson (L2 and L1 forms), BDPT and G-BDPT + L1 / L2 on real scenes.
+// Poisson (L2 and L1 forms), G-PT + neural (where its plugin is built), BDPT
+// and G-BDPT + L1 / L2 on real scenes.
 //
 // For each scene: a cached high-spp reference (PT; BDPT on veach-bidir), then for every time budget
 // of a geometric series one PT, one G-PT and one BDPT render (interleaved, so
@@ -18,6 +19,7 @@
 //          [--scenes a,b] [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..]
 //          [--ref-spp N] [--set key=value]... [--l1-set key=value]...
 //          [--weighted NAME:key=value,...]... [--no-bdpt] [--no-gbdpt]
+//          [--no-neural] [--neural-set key=value]...
 //          [--out DIR] [--cache DIR] [--docs DIR] [--threads N]
 //
 //   --scenes a,b      built-in scenes by name (see --help); all six by default
@@ -35,6 +37,11 @@
 //   --weighted NAME:k=v,...  a row "gpt-NAME" reconstructed by poisson-weighted with
 //                     these parameters (repeatable); replaces the default rows
 //                     gpt-w1 (poisson-weighted's defaults: L1) and gpt-w2 (norm=l2).
+//   --no-neural       leaves the row gpt-neural out. It is there only where the
+//                     neural reconstructor's plugin is built (gdr/cli/plugins.h):
+//                     the G-PT render of the other rows reconstructed by the U-Net,
+//                     placed at render + inference time.
+//   --neural-set key=value  a parameter of the neural reconstructor (weights, threads).
 //   --no-bdpt         leaves BDPT out (a third of the run time).
 //   --no-gbdpt        leaves G-BDPT out (it is timed as G-PT: render + solve).
 #include <algorithm>
@@ -49,6 +56,7 @@
 #include <vector>
 
 #include "gdr/cli/commands.h"
+#include "gdr/cli/plugins.h"
 #include "gdr/eval/equal_time.h"
 #include "gdr/eval/plot.h"
 #include "gdr/integrators/integrator.h"
@@ -92,7 +100,8 @@ struct Options {
     std::vector<SceneSpec> scenes;  // in the order given
     std::vector<std::string> gpt_sets, l1_sets;  // "key=value" texts, in the order given
     std::vector<std::pair<std::string, std::string>> weighted;  // (row name, "k=v,k=v") of poisson-weighted rows
-    bool bdpt = true, gbdpt = true;
+    bool bdpt = true, gbdpt = true, neural = true;
+    std::vector<std::string> neural_sets;  // "key=value" texts of the neural reconstructor
     // 192 px and 8 s keep the full run, references included, near 20 minutes on 2 cores.
     int width = 192;
     std::vector<double> budgets{0.25, 0.5, 1, 2, 4, 8};
@@ -161,7 +170,9 @@ Options parse(int argc, char** argv) {
             if (name.empty() || name.find_first_of(",/\\ ") != std::string::npos)
                 throw ParameterError("--weighted '" + v + "': expected NAME:key=value,... with a plain NAME");
             o.weighted.push_back({"gpt-" + name, colon == std::string::npos ? "" : v.substr(colon + 1)});
-        } else if (a == "--no-bdpt") o.bdpt = false;
+        } else if (a == "--no-neural") o.neural = false;
+        else if (a == "--neural-set") o.neural_sets.push_back(next());
+        else if (a == "--no-bdpt") o.bdpt = false;
         else if (a == "--no-gbdpt") o.gbdpt = false;
         else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
@@ -182,6 +193,8 @@ Options parse(int argc, char** argv) {
                         "  --set         a gpt integrator parameter (not 'reconstruct': the benchmark times the solves)\n"
                         "  --l1-set      a poisson-l1 parameter, e.g. preset=reference, iterations=N\n"
                         "  --weighted    NAME:k=v,... a poisson-weighted row gpt-NAME (default rows w1: its defaults, w2: norm=l2)\n"
+                        "  --no-neural   leave G-PT + neural out (it runs where its plugin is built)\n"
+                        "  --neural-set  a neural reconstructor parameter: weights=W.pt, threads=N\n"
                         "  --no-bdpt     leave BDPT out\n"
                         "  --no-gbdpt    leave G-BDPT out\n"
                         "G-PT times include the reconstruction: equal time charges everything.\n"
@@ -493,6 +506,26 @@ int main(int argc, char** argv) try {
         methods.push_back(row), labels.push_back("G-PT + weighted " + row.substr(4) + " (" + (sets.empty() ? "defaults" : sets) + ")");
         colors.push_back(kWeightedColors[i % (sizeof kWeightedColors / sizeof kWeightedColors[0])]);
     }
+    // G-PT + neural: the same render, reconstructed by the U-Net, where the
+    // plugin is built (otherwise the run is what it is without it).
+    std::unique_ptr<Reconstructor> neural;
+    if (o.neural) {
+        // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise.
+        setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
+        const cli::PluginLoad& plugin = cli::load_reconstructor_plugins();
+        if (reconstructor_registry().has("neural")) {
+            Params np("bench_equal_time --neural-set");
+            for (const std::string& s : o.neural_sets) np.set_from_text(s);
+            neural = reconstructor_registry().create("neural", np);
+            settings += "; gpt-neural: neural " + one_line(neural->describe());
+            methods.push_back("gpt-neural"), labels.push_back("G-PT + neural (U-Net)");
+            colors.push_back({20, 20, 140});
+        } else {
+            std::printf("G-PT + neural left out: %s\n",
+                        plugin.path.empty() ? "its plugin is not built (it needs libtorch)"
+                                            : (plugin.path + ": " + plugin.error).c_str());
+        }
+    }
     const int kNumMethods = int(methods.size());
     std::printf("%s\n%s\n", settings.c_str(), kTimeCharge);
     const auto t_start = Clock::now();
@@ -540,6 +573,14 @@ int main(int argc, char** argv) try {
         (void)reconstruct("poisson-l1", l1_params, gradient_buffers(fb));
         const double l1_est = since(t0);
         std::printf("  L1 solve %.3f s at this resolution\n", l1_est);
+        if (neural) {
+            // Twice: the first run includes torch's one-time set-up, which a
+            // renderer that keeps the network loaded pays once.
+            (void)neural->reconstruct(gradient_buffers(fb));
+            t0 = Clock::now();
+            (void)neural->reconstruct(gradient_buffers(fb));
+            std::printf("  neural inference %.3f s at this resolution\n", since(t0));
+        }
 
         std::vector<std::vector<CurvePoint>> curve(kNumMethods);
         std::vector<std::vector<double>> at_budget(kNumMethods);  // relMSE per budget index
@@ -593,6 +634,12 @@ int main(int argc, char** argv) try {
                 const double sw = since(t0);
                 add(kNumFixed + int(v), T, render_s + sw, render_s, sw, rs.spp, wimg);
             }
+            if (neural) {
+                t0 = Clock::now();
+                const Image nimg = neural->reconstruct(gb);
+                const double sn = since(t0);
+                add(kNumMethods - 1, T, render_s + sn, render_s, sn, rs.spp, nimg);
+            }
             if (!o.bdpt) continue;
 
             st.seed = uint64_t(1001 + i);
@@ -642,7 +689,7 @@ int main(int argc, char** argv) try {
                           fmt_speedup(bd.seconds, time_to_reach(curve[1], bd.error), curve[1]).c_str());
             wline += b;
         }
-        // Each weighted row: speed-up, the largest relMSE ratio to PT at an equal budget, the largest mean deviation.
+        // Each row after the fixed ones (weighted, neural): speed-up and the largest relMSE ratio to PT at an equal budget.
         for (int m = kNumFixed; m < kNumMethods; ++m) {
             double worst = 0;
             for (size_t i = 0; i < at_budget[m].size(); ++i) worst = std::max(worst, at_budget[m][i] / at_budget[0][i]);

@@ -2,15 +2,19 @@
 // the bound (a bare DCT solve) and the reference's CPU method (50 plain CG
 // iterations, "L2D"), all measured in one run (medians of several repetitions),
 // plus the default L1's energy gap to a converged L1 and, on the reference's
-// own 512x512 buffers, the relMSE of poisson-l2 against its L2 output.
+// own 512x512 buffers, the relMSE of poisson-l2 against its L2 output. Where
+// the neural reconstructor's plugin is built, its inference time at the same
+// size too (the shipped model; albedo, normal and depth are constant
+// stand-ins, which change no operation count: the network is convolutions).
 //
 // Input: the reference cbox buffers tiled periodically to 1280x720 (real
 // Monte Carlo noise; the seams act as edges), or a synthetic noisy image if
 // the shared reference outputs are absent.
 //
-// Usage: bench_reconstruct [--reps N] [--with-reference]
+// Usage: bench_reconstruct [--reps N] [--with-reference] [--no-neural]
 //   --with-reference  also runs the reference's own L1 preset (20 IRLS x 50
 //                     plain CG from the primal; ~15 CPU-seconds) for its energy.
+//   --no-neural       leaves the neural reconstructor's timing out.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -26,6 +30,7 @@
 #include <tbb/info.h>
 
 #include "gdr/cli/commands.h"
+#include "gdr/cli/plugins.h"
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/poisson.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -109,7 +114,7 @@ PoissonProblem problem_of(const GradientFrame& f, double alpha) {
 
 int main(int argc, char** argv) {
     int reps = 5;
-    bool with_reference = false;
+    bool with_reference = false, with_neural = true;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) {
             try {
@@ -120,8 +125,9 @@ int main(int argc, char** argv) {
             }
         }
         else if (!std::strcmp(argv[i], "--with-reference")) with_reference = true;
+        else if (!std::strcmp(argv[i], "--no-neural")) with_neural = false;
         else {
-            std::fprintf(stderr, "usage: %s [--reps N] [--with-reference]\n", argv[0]);
+            std::fprintf(stderr, "usage: %s [--reps N] [--with-reference] [--no-neural]\n", argv[0]);
             return 2;
         }
     }
@@ -181,6 +187,33 @@ int main(int argc, char** argv) {
     const L1Report rep_conv = poisson_l1(prob, conv, l1_conv.data());
     const double conv_cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
 
+    // The neural reconstructor, where its plugin is built (the build tree's,
+    // unless GDR_PLUGIN_PATH says otherwise).
+    std::string neural_note = "not measured (--no-neural)";
+    Timing t_neural;
+    if (with_neural) {
+        setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
+        const cli::PluginLoad& plugin = cli::load_reconstructor_plugins();
+        if (reconstructor_registry().has("neural")) {
+            const auto net = reconstructor_registry().create("neural", Params("bench_reconstruct"));
+            FrameBuffer fb(W, H);
+            fb.set("primal", frame.primal), fb.set("dx", frame.dx), fb.set("dy", frame.dy);
+            fb.add("albedo", 3).values().assign(size_t(W) * H * 3, 0.5f);
+            Image& normal = fb.add("normal", 3);
+            for (size_t i = 2; i < normal.values().size(); i += 3) normal.values()[i] = 1.f;
+            fb.add("depth", 1).values().assign(size_t(W) * H, 1.f);
+            const GradientBuffers nb = gradient_buffers(fb);
+            (void)net->reconstruct(nb);  // the first run includes torch's one-time set-up
+            t_neural = measure(reps, [&] { (void)net->reconstruct(nb); });
+            std::string params = net->describe();
+            for (char& c : params) c = c == '\n' ? ' ' : c;
+            neural_note = "measured: " + params;
+        } else {
+            neural_note = plugin.path.empty() ? "not measured: its plugin is not built (it needs libtorch)"
+                                              : "not measured: " + plugin.path + ": " + plugin.error;
+        }
+    }
+
     auto line = [](const char* what, const Timing& t) {
         std::printf("  %-44s %8.1f ms  (%8.1f ms CPU)\n", what, t.wall * 1e3, t.cpu * 1e3);
     };
@@ -189,6 +222,8 @@ int main(int argc, char** argv) {
     line("poisson-l2 (checks, rhs, DCT, + direct)", t_l2);
     line("reference L2D: 50 plain CG iterations", t_l2d);
     line("poisson-l1 default", t_l1);
+    if (t_neural.wall > 0) line("neural (U-Net, libtorch)", t_neural);
+    std::printf("  neural: %s\n", neural_note.c_str());
     std::printf("\nratios\n");
     std::printf("  poisson-l2 / bare DCT solve              %8.2f   (target <= 2)\n", t_l2.wall / t_dct.wall);
     std::printf("  L2D (50 CG) / poisson-l2                 %8.2f\n", t_l2d.wall / t_l2.wall);

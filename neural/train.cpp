@@ -6,9 +6,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <random>
 #include <sys/resource.h>
@@ -16,6 +18,7 @@
 #include <vector>
 
 #include "gdr/core/error.h"
+#include "gdr/eval/plot.h"
 #include "gdr/io/exr.h"
 #include "gdr/metrics.h"
 #include "gdr/neural/neural_reconstructor.h"
@@ -46,6 +49,9 @@ const char* kUsage = R"(usage:
       layer "color" of OUT.exr.
   gdr_train time [--widths 16,32,48,64] [--size 1280x720] [--threads 2] [--repeat 3]
       Seconds per inference of an untrained network of that shape on random input.
+  gdr_train plot --losses CKPT.csv -o CURVE.png [--window 50] [--title TEXT]
+      The training curve of a run (the csv train writes): the loss of every step,
+      its mean over the last --window steps and the validation loss (log scale).
 )";
 
 std::vector<std::string> split(const std::string& s) {
@@ -349,6 +355,105 @@ int time_inference(int argc, char** argv) {
     return 0;
 }
 
+/// A training curve on a canvas: steps on a linear axis (training progress is
+/// even in steps), loss on a log axis (it falls by factors); each series a
+/// polyline without markers (thousands of steps), legend at the top right.
+eval::Canvas draw_training_curve(const std::string& title, const std::vector<eval::Series>& series, int W, int H) {
+    using eval::Canvas;
+    Canvas c(W, H);
+    const eval::Rgb8 black{0, 0, 0}, grid{228, 228, 228};
+    double xhi = 1, ylo = std::numeric_limits<double>::infinity(), yhi = 0;
+    for (const auto& s : series)
+        for (const auto& p : s.points)
+            if (p.error > 0) xhi = std::max(xhi, p.seconds), ylo = std::min(ylo, p.error), yhi = std::max(yhi, p.error);
+    const double ly0 = std::floor(std::log10(ylo) * 2) / 2, ly1 = std::ceil(std::log10(yhi) * 2) / 2;
+    const int L = 64, R = W - 20, T = 48, B = H - 46;
+    const auto X = [&](double v) { return L + v / xhi * (R - L); };
+    const auto Y = [&](double v) { return B - (std::log10(v) - ly0) / (ly1 - ly0) * (B - T); };
+    // x ticks every 1, 2 or 5 x 10^k steps, about 5 of them.
+    const double raw = xhi / 5, mag = std::pow(10.0, std::floor(std::log10(raw)));
+    const double step = raw / mag < 2 ? mag : raw / mag < 5 ? 2 * mag : 5 * mag;
+    for (double t = 0; t <= xhi * 1.0001; t += step) {
+        const int x = int(std::lround(X(t)));
+        c.line(x, T, x, B, grid);
+        c.line(x, B, x, B + 4, black);
+        const std::string lab = fmt::format("{}", t);
+        c.text(x - Canvas::text_width(lab) / 2, B + 7, lab, black);
+    }
+    for (int e = int(std::floor(ly0)); e <= int(std::ceil(ly1)); ++e)
+        for (double m : {1.0, 2.0, 5.0}) {
+            const double v = m * std::pow(10.0, e);
+            if (std::log10(v) < ly0 - 1e-9 || std::log10(v) > ly1 + 1e-9) continue;
+            const int y = int(std::lround(Y(v)));
+            c.line(L, y, R, y, grid);
+            c.line(L - 4, y, L, y, black);
+            const std::string lab = fmt::format("{:g}", v);
+            c.text(L - 7 - Canvas::text_width(lab), y - 4, lab, black);
+        }
+    for (const auto& s : series)
+        for (size_t i = 1; i < s.points.size(); ++i) {
+            const auto &a = s.points[i - 1], &b = s.points[i];
+            if (a.error > 0 && b.error > 0) c.line(X(a.seconds), Y(a.error), X(b.seconds), Y(b.error), s.color, s.dashed ? 1 : 2);
+        }
+    c.line(L, T, L, B, black), c.line(L, B, R, B, black), c.line(R, T, R, B, black), c.line(L, T, R, T, black);
+    int lw = 0;
+    for (const auto& s : series) lw = std::max(lw, Canvas::text_width(s.label));
+    const int lx = R - lw - 46;
+    int ly = T + 8;
+    c.fill_rect(lx - 6, ly - 5, R - 6, ly + int(series.size()) * 16 + 1, {255, 255, 255});
+    for (const auto& s : series) {
+        c.line(lx, ly + 4, lx + 28, ly + 4, s.color, 2);
+        c.text(lx + 34, ly, s.label, black);
+        ly += 16;
+    }
+    c.text(L, 8, title, black, 2);
+    const std::string xl = "training step", yl = "loss: L1 of tone-mapped values + 0.01 relMSE (log scale)";
+    c.text((L + R) / 2 - Canvas::text_width(xl) / 2, H - 18, xl, black);
+    c.text(L, T - 14, yl, black);
+    return c;
+}
+
+int plot_losses(int argc, char** argv) {
+    const Options o(argc, argv, {"--losses", "-o", "--window", "--title"}, {});
+    const std::string csv = o.need("--losses"), out = o.need("-o");
+    const long long window = o.num("--window", 50);
+    if (window < 1) throw ParameterError("gdr_train plot: --window must be at least 1");
+    std::ifstream in(csv);
+    if (!in) throw InputError("gdr_train plot: cannot read " + csv);
+    std::vector<eval::CurvePoint> loss, validation;
+    std::string line;
+    for (int n = 1; std::getline(in, line); ++n) {
+        const auto f = split(line);
+        if (f.empty() || f[0] == "step") continue;
+        try {
+            const double step = std::stod(f.at(0));
+            loss.push_back({step, std::stod(f.at(1))});
+            if (f.size() > 2) validation.push_back({step, std::stod(f[2])});
+        } catch (const std::exception&) {
+            throw InputError(fmt::format("gdr_train plot: {} line {}: expected step,loss[,validation_loss], got '{}'", csv,
+                                         n, line));
+        }
+    }
+    if (loss.empty()) throw InputError("gdr_train plot: " + csv + " holds no losses");
+    // The per-step loss is one minibatch's: the trend shows in its running mean.
+    std::vector<eval::CurvePoint> mean;
+    double sum = 0.0;
+    for (size_t i = 0; i < loss.size(); ++i) {
+        sum += loss[i].error;
+        if (i >= size_t(window)) sum -= loss[i - size_t(window)].error;
+        mean.push_back({loss[i].seconds, sum / double(std::min(i + 1, size_t(window)))});
+    }
+    std::vector<eval::Series> series;
+    series.push_back({"loss of each step (one minibatch of 8)", {200, 200, 200}, loss, true});
+    series.push_back({fmt::format("mean of the last {} steps", window), {200, 40, 40}, mean, false});
+    if (!validation.empty()) series.push_back({"validation loss", {40, 90, 200}, validation, false});
+    const std::string title = o.get("--title", "training loss, " + std::filesystem::path(csv).filename().string());
+    draw_training_curve(title, series, 760, 440).write_png(out);
+    fmt::print(stderr, "plot: {} steps of {} -> {} (mean of the last {} steps {:.5f})\n", loss.size(), csv, out, window,
+               mean.back().error);
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -359,6 +464,7 @@ int main(int argc, char** argv) {
         if (cmd == "validate") return validate(argc, argv);
         if (cmd == "time") return time_inference(argc, argv);
         if (cmd == "reconstruct") return reconstruct_file(argc, argv);
+        if (cmd == "plot") return plot_losses(argc, argv);
         std::fputs(kUsage, cmd == "-h" || cmd == "--help" ? stdout : stderr);
         return cmd == "-h" || cmd == "--help" ? 0 : 2;
     } catch (const Error& e) {

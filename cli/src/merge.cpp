@@ -7,6 +7,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "gdr/cli/plugins.h"
 #include "frames.h"
 #include "say.h"
 #include "gdr/core/error.h"
@@ -20,7 +21,9 @@ namespace {
 
 // The integrator that made a render, rebuilt from its stored name and parameters.
 std::unique_ptr<Integrator> integrator_of(const StoredRender& p) {
-    return integrator_registry().create(p.fb.metadata().at("integrator"), stored_params(p));
+    const Params params = stored_params(p);
+    require_reconstructors_of(params, "gdr merge " + p.file);
+    return integrator_registry().create(p.fb.metadata().at("integrator"), params);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "gdr/cli/plugins.h"
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -87,6 +88,8 @@ int reconstruct(const std::vector<std::string>& args) {
             inputs.push_back(base + suffix);
         check_not_an_input(out, inputs);
     }
+    // Before reading the input: a method that is not built is named at once.
+    require_reconstructor(method, "gdr reconstruct --method " + method);
 
     GradientFrame frame;
     FrameBuffer fb;

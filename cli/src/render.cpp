@@ -13,6 +13,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "gdr/cli/plugins.h"
 #include "frames.h"
 #include "render_options.h"
 #include "say.h"
@@ -258,6 +259,7 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         for (const auto& [k, v] : stored.values()) params.set(k, v);
     }
     for (const auto& s : sets) params.set_from_text(s);
+    require_reconstructors_of(params, "gdr render");
     auto integrator = integrator_registry().create(name, params);
 
     const auto& cam = sf.scene->camera();
@@ -601,9 +603,18 @@ int list_plugins() {
     fmt::print("scene settings (gdr render --set key=value): fov (degrees, along the camera's fov axis)\n");
     fmt::print("shift mappings (gpt shift=NAME):\n");
     for (const auto& n : shift_registry().names()) fmt::print("  {:<18} {}\n", n, shift_registry().description(n));
+    // The plugins' reconstructors too: loading them costs libtorch's start-up
+    // time, which a listing may spend.
+    const PluginLoad& plugins = load_reconstructor_plugins();
     fmt::print("reconstructors (gdr reconstruct --method NAME):\n");
     for (const auto& n : reconstructor_registry().names())
         fmt::print("  {:<18} {}\n", n, reconstructor_registry().description(n));
+    if (!reconstructor_registry().has("neural"))
+        fmt::print("  {:<18} {}\n", "neural",
+                   plugins.path.empty() ? "not built, or not found (no " + std::string(kNeuralPluginFile) +
+                                              " where gdr looks: GDR_PLUGIN_PATH); it needs libtorch, which "
+                                              "scripts/install-deps.sh installs (libtorch-dev)"
+                                        : "its plugin " + plugins.path + " could not be loaded: " + plugins.error);
     return 0;
 }
 

@@ -324,8 +324,10 @@ std::string write_render(const std::string& out, const FrameBuffer& fb, float ex
 }
 
 std::string preview_layer(const FrameBuffer& fb) {
-    // A gradient-domain render is shown as its variance-weighted (else L1) reconstruction, anything else as its colour.
-    for (const char* name : {"reconstruction_weighted", "reconstruction_l1", "color"})
+    // A gradient-domain render is shown as its variance-weighted (else L1)
+    // reconstruction, anything else as its colour. The neural one comes
+    // first: a render holds it only when it was asked for (reconstruct=neural).
+    for (const char* name : {"reconstruction_neural", "reconstruction_weighted", "reconstruction_l1", "color"})
         if (fb.has(name)) return name;
     return fb.names().front();
 }

@@ -4,6 +4,7 @@
 // the output holds the scripts, the part files, the logs, the plan (which
 // --resume and status read) and the ids of the jobs submitted.
 #include "gdr/cli/submit.h"
+#include "gdr/cli/plugins.h"
 
 #include <pwd.h>
 #include <sys/stat.h>
@@ -800,6 +801,7 @@ int submit(const std::vector<std::string>& args) {
     Params params(integrator_sets.empty() ? sf.defaults.params.context() : "--set");
     for (const auto& [k, v] : sf.defaults.params.values()) params.set(k, v);
     for (const std::string& s : integrator_sets) params.set_from_text(s);
+    require_reconstructors_of(params, "gdr submit");
     (void)integrator_registry().create(name, params);
 
     SubmitPlan plan;

@@ -14,10 +14,11 @@ namespace {
 
 class NeuralReconstructor final : public Reconstructor {
 public:
-    explicit NeuralReconstructor(const Params& p) {
-        weights_ = p.get_string("weights", "");
+    NeuralReconstructor(const Params& p, const std::string& default_weights, const std::string& missing_default) {
+        weights_ = p.get_string("weights", default_weights);
         if (weights_.empty())
-            throw ParameterError(p.context() + ": the neural reconstructor needs weights=PATH (a file written by gdr_train)");
+            throw ParameterError(p.context() + ": the neural reconstructor needs weights=PATH (a file written by gdr_train)" +
+                                 (missing_default.empty() ? "" : "; " + missing_default));
         const long long threads = p.get_int("threads", 0);
         if (threads < 0 || threads > 1024)
             throw ParameterError(p.context() + ": parameter 'threads' must be in 0..1024, got " + std::to_string(threads));
@@ -52,9 +53,13 @@ private:
 
 }  // namespace
 
-void register_neural_reconstructor(Registry<Reconstructor>& r) {
-    r.add("neural", "U-Net on primal, gradients, albedo, normal, depth (libtorch); weights=PATH, threads",
-          [](const Params& p) { return std::make_unique<NeuralReconstructor>(p); });
+void register_neural_reconstructor(Registry<Reconstructor>& r, const std::string& default_weights,
+                                   const std::string& missing_default) {
+    const std::string weights_doc = default_weights.empty() ? "weights=PATH" : "weights (default " + default_weights + ")";
+    r.add("neural", "U-Net on primal, gradients, albedo, normal, depth (libtorch); " + weights_doc + ", threads",
+          [default_weights, missing_default](const Params& p) {
+              return std::make_unique<NeuralReconstructor>(p, default_weights, missing_default);
+          });
 }
 
 }  // namespace gdr::neural

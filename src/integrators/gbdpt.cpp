@@ -227,10 +227,11 @@ protected:
         out.set("primal_variance", std::move(primal_var));
         out.set("dx_variance", std::move(dx_var));
         out.set("dy_variance", std::move(dy_var));
-        if (acc.derived) recon_.add(out, acc.spp, "gbdpt");
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
+        // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
+        if (acc.derived) recon_.add(out, acc.spp, "gbdpt");
     }
 
 public:

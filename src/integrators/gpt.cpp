@@ -222,9 +222,15 @@ GradientReconstructions GradientReconstructions::from(const Params& p, const std
     GradientReconstructions r;
     // The variance-weighted solve is the final image (the benchmark's
     // best, docs/performance.md); L1 and L2 stay, the anchors' methods.
-    r.choice = p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "none"});
+    r.choice = p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "neural", "none"});
     r.alpha = p.get_real("alpha", 0.2);
     if (!(r.alpha > 0.0)) throw ParameterError(who + ": alpha must be positive");
+    // The neural reconstructor is not part of libgdr (it needs libtorch):
+    // checked now, so that a render does not run to its end to fail there.
+    if (r.choice == "neural" && !reconstructor_registry().has("neural"))
+        throw ParameterError(who + ": reconstruct=neural needs the reconstructor 'neural', which is not registered (it "
+                                   "is in the optional library gdr_neural, gdr::neural::register_neural_reconstructor; "
+                                   "the gdr tool loads it as a plugin)");
     return r;
 }
 
@@ -232,7 +238,8 @@ void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::strin
     const bool weighted = choice == "all" || choice == "weighted";
     const bool l1 = choice == "all" || choice == "l1+l2" || choice == "l1";
     const bool l2 = choice == "all" || choice == "l1+l2" || choice == "l2";
-    if (!weighted && !l1 && !l2) return;
+    const bool neural = choice == "neural";
+    if (!weighted && !l1 && !l2 && !neural) return;
     GradientBuffers gb = gradient_buffers(fb);
     Image spp_image;
     if (!gb.spp && spp > 0) {
@@ -245,6 +252,7 @@ void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::strin
     rp.set("alpha", alpha);
     if (l1) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
     if (l2) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
+    if (neural) fb.set("reconstruction_neural", reconstruct("neural", Params(who), gb));
 }
 
 void register_gpt(Registry<Integrator>& r) {

@@ -329,10 +329,11 @@ protected:
         }
         // The weighted reconstruction reads each pixel's own count.
         if (acc.adaptive()) out.set("spp", acc.count_image());
-        if (acc.derived) recon_.add(out, acc.spp, who_);
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
+        // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
+        if (acc.derived) recon_.add(out, acc.spp, who_);
     }
 
     /// The reconstructions stored beside the primal and gradients.

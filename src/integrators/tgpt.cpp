@@ -118,7 +118,6 @@ protected:
         out.set("dx_variance", mean_var(a.dx_var, b.dx_var));
         out.set("dy_variance", mean_var(a.dy_var, b.dy_var));
         if (acc.adaptive()) out.set("spp", acc.count_image());
-        if (acc.derived) reconstructions().add(out, acc.spp, who());
         out.set(temporal_layers::primal_a, std::move(a.primal));
         out.set(std::string(temporal_layers::primal_a) + "_variance", std::move(a.primal_var));
         out.set(temporal_layers::primal_b, std::move(b.primal));
@@ -127,6 +126,8 @@ protected:
         out.set("albedo", mean(im[2], im[3]));
         out.set("normal", mean(im[4], im[5]));
         out.set("depth", mean(im[6], im[7]));
+        // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
+        if (acc.derived) reconstructions().add(out, acc.spp, who());
     }
 
 private:

@@ -56,11 +56,13 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
 /// The reconstructions a gradient-domain integrator (gpt, gbdpt) stores
 /// beside its primal and gradients, from its `reconstruct` and `alpha` parameters.
 struct GradientReconstructions {
-    std::string choice = "all";  ///< The `reconstruct` parameter: all, weighted, l1+l2, l1, l2 or none.
+    std::string choice = "all";  ///< The `reconstruct` parameter: all, weighted, l1+l2, l1, l2, neural or none.
     double alpha = 0.2;          ///< Weight of the primal in the screened Poisson energy (unitless).
-    /// Reads `reconstruct` and `alpha` for integrator `who`; throws ParameterError naming a bad one.
+    /// Reads `reconstruct` and `alpha` for integrator `who`; throws ParameterError
+    /// naming a bad one, or for reconstruct=neural if reconstructor_registry()
+    /// has no "neural" (it is registered by the optional gdr_neural library).
     static GradientReconstructions from(const Params& p, const std::string& who);
-    /// Sets the chosen layers (reconstruction_weighted, _l1, _l2; radiance) of
+    /// Sets the chosen layers (reconstruction_weighted, _l1, _l2, _neural; radiance) of
     /// fb's primal and gradients, each with the directly visible emitters
     /// added back. The weighted one reads the variances and the sample
     /// counts: `spp`, where fb has no spp layer yet (a render's own

@@ -105,8 +105,9 @@ void check_same_render(const RenderIdentity& a, const std::string& a_name, const
 /// when `out` is a device or pipe (-o /dev/null), which gets no preview.
 std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure = 0.f);
 
-/// The layer a render's preview shows: the L1 reconstruction of a
-/// gradient-domain render, else its colour.
+/// The layer a render's preview shows: the reconstruction of a
+/// gradient-domain render (neural if it has one, else variance-weighted, else
+/// L1), else its colour.
 std::string preview_layer(const FrameBuffer& fb);
 
 /// Throws a RuntimeFailure naming `file`, the layer and the pixel of the

@@ -1,0 +1,230 @@
+// The neural reconstructor in use: through the gdr tool's plugin (the real
+// binary), with 1 and 2 torch threads, and the shipped model's error on the
+// validation scene against poisson-l1's.
+#include <catch2/catch.hpp>
+
+#include <fmt/core.h>
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/exr.h"
+#include "gdr/io/scene_file.h"
+#include "gdr/metrics.h"
+#include "gdr/neural/neural_reconstructor.h"
+#include "gdr/neural/training.h"
+#include "tool_process.h"
+
+using namespace gdr;
+using Catch::Matchers::Contains;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kShippedModel = GDR_SOURCE_DIR "/neural/models/unet-v0.pt";
+
+/// A temporary directory removed at the end of the test.
+struct TempDir {
+    fs::path path;
+    explicit TempDir(const std::string& name)
+        : path(fs::temp_directory_path() / ("gdr-neural-tool-" + name + "-" + std::to_string(::getpid()))) {
+        fs::create_directories(path);
+    }
+    ~TempDir() {
+        std::error_code ec;
+        fs::remove_all(path, ec);
+    }
+    std::string operator()(const std::string& n) const { return (path / n).string(); }
+};
+
+/// Mean squared difference of two images of one shape (radiance^2).
+double mse_of(const Image& a, const Image& b) {
+    REQUIRE(a.values().size() == b.values().size());
+    double s = 0.0;
+    for (size_t i = 0; i < a.values().size(); ++i) {
+        const double d = double(a.values()[i]) - b.values()[i];
+        s += d * d;
+    }
+    return s / double(a.values().size());
+}
+
+/// Mean of all values (radiance).
+double mean_of(const Image& a) {
+    double s = 0.0;
+    for (float v : a.values()) s += v;
+    return s / double(a.values().size());
+}
+
+/// A gpt render (no reconstructions) of `scene` at w x h, in process.
+FrameBuffer gpt_render(const std::string& scene, int w, int h, int spp, uint64_t seed) {
+    SceneFile sf = load_scene_file(scene);
+    set_resolution(sf, w, h);
+    Params gp("test gpt");
+    gp.set("reconstruct", std::string("none"));
+    auto gpt = integrator_registry().create("gpt", gp);
+    RenderSettings st;
+    st.spp = spp;
+    st.seed = seed;
+    FrameBuffer fb;
+    gpt->render(*sf.scene, st, fb);
+    return fb;
+}
+
+/// The shipped model as a reconstructor with `threads` torch threads.
+std::unique_ptr<Reconstructor> shipped(int threads) {
+    static Registry<Reconstructor> reg = [] {
+        Registry<Reconstructor> r("reconstructor");
+        neural::register_neural_reconstructor(r);
+        return r;
+    }();
+    Params p("test");
+    p.set("weights", kShippedModel);
+    p.set("threads", (long long)threads);
+    return reg.create("neural", p);
+}
+
+// Inference with 1 and 2 threads sums in different orders, so the outputs
+// differ in the last bits. On 257x191 gpt renders of the Cornell box the
+// difference was measured as an MSE of 1.7e-17 at a mean of 0.089 (4 spp,
+// another seed) and 4.0e-17 at a mean of 0.088 (the render below): relative
+// RMS differences of 4.6e-8 and 7.2e-8. The bound is a relative RMS of 1e-6
+// (about 8 float epsilons, 14x the larger measurement): float rounding stays
+// below it, a race or a thread-dependent crop would be far above it.
+constexpr double kThreadRelRms = 1e-6;
+
+}  // namespace
+
+TEST_CASE("inference with 1 and 2 threads agrees to float rounding", "[neural][threads]") {
+    const FrameBuffer fb = gpt_render(GDR_SOURCE_DIR "/scenes/cornell-box/scene.json", 257, 191, 4, 11);
+    const GradientBuffers gb = gradient_buffers(fb);
+    const Image one = shipped(1)->reconstruct(gb);
+    const Image two = shipped(2)->reconstruct(gb);
+    const double mse = mse_of(one, two), mean = mean_of(one);
+    const double rel_rms = std::sqrt(mse) / mean;
+    INFO("MSE " << mse << ", mean " << mean << ", relative RMS " << rel_rms);
+    REQUIRE(mean > 0.0);
+    REQUIRE(rel_rms <= kThreadRelRms);
+}
+
+TEST_CASE("gdr reconstruct --method neural and gdr render reconstruct=neural run the plugin", "[neural][cli]") {
+    const TempDir dir("cli");
+    const std::string scene = GDR_SOURCE_DIR "/tests/scenes/cornell-small.json";
+    const std::string gpt = dir("gpt.exr");
+    // Default plugin search (the build tree's layout), as a user's run has it.
+    test::ToolRun r = test::run_tool(GDR_TOOL,
+                                     {"render", scene, "--integrator", "gpt", "--spp", "8", "--seed", "3", "--resolution",
+                                      "48x40", "--set", "reconstruct=none", "-o", gpt},
+                                     dir("render.log"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+
+    r = test::run_tool(GDR_TOOL, {"reconstruct", gpt, "--method", "neural", "-o", dir("neural.exr")}, dir("rec.log"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK_THAT(r.output, Contains("with neural"));
+    const FrameBuffer in = read_exr(gpt), out = read_exr(dir("neural.exr"));
+    const Image& img = out.get("color");
+    REQUIRE(img.width() == 48);
+    REQUIRE(img.height() == 40);
+    for (float v : img.values()) REQUIRE((std::isfinite(v) && v >= 0.f));
+    // weights defaulted to the shipped model, found beside the plugin.
+    CHECK(out.metadata().at("reconstruction") == "neural");
+    CHECK_THAT(out.metadata().at("reconstruction_params"), Contains("weights=" GDR_SHIPPED_MODEL_BUILD));
+    // It denoised: the output (network + direct) is far from the noisy input
+    // (primal + direct). Measured: a relative RMS difference of 0.14 on this
+    // render; an untrained network, which returns its input, gave 2e-8 with
+    // weights=untrained.pt (checked once).
+    const Image& noisy = in.get("color");
+    const double rel_change = std::sqrt(mse_of(img, noisy)) / mean_of(noisy);
+    INFO("relative RMS change " << rel_change);
+    CHECK(rel_change > 0.05);
+    // And it is the library's reconstructor with that model (to float
+    // rounding: the tool uses every hardware thread).
+    const Image lib = shipped(1)->reconstruct(gradient_buffers(in));
+    CHECK(std::sqrt(mse_of(img, lib)) / mean_of(lib) <= kThreadRelRms);
+
+    // In a render: the layer reconstruction_neural instead of the Poisson
+    // solves, shown by the PNG preview.
+    const std::string rn = dir("render-neural.exr");
+    r = test::run_tool(GDR_TOOL,
+                       {"render", scene, "--integrator", "gpt", "--spp", "8", "--seed", "3", "--resolution", "48x40",
+                        "--set", "reconstruct=neural", "-o", rn},
+                       dir("render2.log"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    CHECK_THAT(r.output, Contains("render-neural.png (reconstruction_neural)"));
+    CHECK(fs::exists(dir("render-neural.png")));
+    const FrameBuffer rfb = read_exr(rn);
+    REQUIRE(rfb.has("reconstruction_neural"));
+    CHECK_FALSE(rfb.has("reconstruction_l1"));
+    CHECK_FALSE(rfb.has("reconstruction_weighted"));
+    // The same seed and samples as gpt.exr, so the same reconstruction.
+    CHECK(std::sqrt(mse_of(rfb.get("reconstruction_neural"), img)) / mean_of(img) <= kThreadRelRms);
+
+    // A weights file that is not there is named.
+    const std::string missing = dir("no-such-model.pt");
+    r = test::run_tool(GDR_TOOL,
+                       {"reconstruct", gpt, "--method", "neural", "--set", "weights=" + missing, "-o", dir("x.exr")},
+                       dir("bad.log"));
+    INFO(r.output);
+    CHECK(r.status == 1);
+    CHECK_THAT(r.output, Contains(missing) && Contains("does not exist"));
+    CHECK_FALSE(fs::exists(dir("x.exr")));
+
+    // gdr list shows it, with its default weights.
+    r = test::run_tool(GDR_TOOL, {"list"}, dir("list.log"));
+    CHECK(r.status == 0);
+    CHECK_THAT(r.output, Contains("neural") && Contains("default " GDR_SHIPPED_MODEL_BUILD));
+}
+
+TEST_CASE("the shipped model's relMSE on fixed views of the validation scene is below poisson-l1's", "[neural][regression]") {
+    // Views 1 and 3 of the validation set (gdr_train data --seed 1001 --size
+    // 64, neural/README.md): veach-bidir, never trained on; 64x64 zoomed-in
+    // views at 4 and 16 spp against a 512-spp target. Measured relMSE
+    // (eps 0.01, per channel), poisson-l1 / neural:
+    //   view 1:  4 spp 0.274 / 0.241,  16 spp 0.372 / 0.115
+    //   view 3:  4 spp 0.958 / 0.223,  16 spp 0.190 / 0.140
+    // mean 0.449 / 0.180: the network's mean is 0.40 of L1's. The margin
+    // required here is only "below": a broken encoding, crop or weights file
+    // gives a network output far worse than either (an untrained network,
+    // which returns the noisy primal, was checked to fail it: mean 5.27, 12x L1's).
+    // The model is not better everywhere: on views 0 and 2 at 4 spp it was
+    // 1.6x and 1.3x above L1 (and on view 0 at 16 spp 9x, a firefly it kept),
+    // which is why those views are not the guard.
+    neural::DatasetOptions d;
+    d.scenes = {GDR_SOURCE_DIR "/scenes/veach-bidir/scene.json"};
+    d.crops = 4;
+    d.size = 64;
+    d.spp = {4, 16};
+    d.target_spp = 512;
+    d.seed = 1001;
+    const TempDir data("regression");
+    // generate_dataset keeps the views whose file exists: placeholders for
+    // views 0 and 2 leave only 1 and 3 to render (about 8 s each).
+    for (int v : {0, 2}) std::ofstream(data(fmt::format("crop-{:05d}.exr", v))) << "unused";
+    neural::generate_dataset(d, data.path.string());
+    const auto net = shipped(2);
+    double l1_sum = 0.0, nn_sum = 0.0;
+    for (int v : {1, 3}) {
+        const FrameBuffer fb = read_exr(data(fmt::format("crop-{:05d}.exr", v)));
+        const Image& target = fb.get("target");
+        for (int s : d.spp) {
+            FrameBuffer frame(fb.width(), fb.height());
+            for (const char* name : {"primal", "dx", "dy", "albedo", "normal", "depth"})
+                frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
+            const GradientBuffers gb = gradient_buffers(frame);
+            const double l1 = relmse(reconstruct("poisson-l1", Params("test"), gb), target);
+            const double nn = relmse(net->reconstruct(gb), target);
+            INFO("view " << v << ", " << s << " spp: poisson-l1 " << l1 << ", neural " << nn);
+            l1_sum += l1, nn_sum += nn;
+        }
+    }
+    INFO("mean relMSE poisson-l1 " << l1_sum / 4 << ", neural " << nn_sum / 4 << " (measured 0.449, 0.180)");
+    REQUIRE(nn_sum < l1_sum);
+}
