@@ -78,7 +78,6 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
     if (adaptive)
         for (size_t p = 0; p < npix; ++p)
             ca[p] = into.get("spp").values()[p], cb[p] = other.get("spp").values()[p];
-    const double n = double(na + nb);
     // Variances first: pooling needs both means before they are overwritten.
     for (const auto& name : into.names()) {
         const bool is_var = name.size() >= 8 && name.compare(name.size() - 8, 8, "variance") == 0;
