@@ -13,7 +13,6 @@
 //          [--runs N] [--pilot SHARE] [--ref-spp N] [--cache DIR] [--threads N]
 //          [--density key=value]...   (AdaptiveOptions: uniform, max, epsilon, median, source)
 //          [--keep-pilot]             (AdaptiveRender::keep_pilot)
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -30,7 +29,6 @@
 
 using namespace gdr;
 namespace fs = std::filesystem;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 
@@ -56,19 +54,6 @@ struct Options {
     bool keep_pilot = false;  // --keep-pilot: AdaptiveRender::keep_pilot
 };
 
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
-std::vector<std::string> split(const std::string& s) {
-    std::vector<std::string> out;
-    size_t a = 0;
-    while (a <= s.size()) {
-        const size_t b = std::min(s.find(',', a), s.size());
-        if (b > a) out.push_back(s.substr(a, b - a));
-        a = b + 1;
-    }
-    return out;
-}
-
 Options parse(int argc, char** argv) {
     Options o;
     cli::ArgReader a{std::vector<std::string>(argv + 1, argv + argc)};
@@ -78,7 +63,7 @@ Options parse(int argc, char** argv) {
             o.scenes = {kScenes[0]}, o.width = 32, o.budget = 0.4, o.runs = 1, o.ref_spp = 64;
         } else if (opt == "--scenes") {
             o.scenes.clear();
-            for (const std::string& n : split(a.value(opt))) {
+            for (const std::string& n : bench::split(a.value(opt))) {
                 bool found = false;
                 for (const SceneSpec& s : kScenes)
                     if (s.name == n) o.scenes.push_back(s), found = true;
@@ -162,15 +147,11 @@ int main(int argc, char** argv) try {
         Params gp;
         gp.set_from_text("reconstruct=none");
         auto gpt = integrator_registry().create("gpt", gp);
+        const double solve = eval::solve_seconds(*gpt, *scene, o.threads, "poisson-l1", Params());
         RenderSettings st;
         st.threads = o.threads;
-        st.spp = 1;
-        FrameBuffer fb;
-        gpt->render(*scene, st, fb);
-        auto t0 = Clock::now();
-        (void)reconstruct("poisson-l1", Params(), gradient_buffers(fb));
-        const double solve = since(t0);
         st.spp = 0;
+        FrameBuffer fb;
         // rows: pt, pt adaptive, gpt+L1, gpt+weighted, adaptive gpt+L1, adaptive gpt+weighted
         const char* names[6] = {"pt", "pt adaptive", "gpt + L1", "gpt + weighted", "gpt adaptive + L1",
                                 "gpt adaptive + weighted"};

@@ -11,6 +11,18 @@
 
 namespace gdr::bench {
 
+/// The non-empty comma-separated items of `s` (option lists such as a,b,c).
+inline std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> v;
+    size_t a = 0;
+    while (a <= s.size()) {
+        const size_t b = std::min(s.find(',', a), s.size());
+        if (b > a) v.push_back(s.substr(a, b - a));
+        a = b + 1;
+    }
+    return v;
+}
+
 /// CPU seconds (user + system, all threads) this process has used so far.
 inline double cpu_seconds() {
     rusage ru{};

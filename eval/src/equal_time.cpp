@@ -7,7 +7,10 @@
 #include <iterator>
 #include <limits>
 
+#include <chrono>
+
 #include "gdr/core/error.h"
+#include "gdr/reconstruct/reconstructor.h"
 #include "gdr/io/scene_file.h"
 
 namespace gdr::eval {
@@ -77,6 +80,17 @@ const char* to_string(Reach r) {
         case Reach::NotReached: return "never";
     }
     return "?";
+}
+
+double solve_seconds(Integrator& gpt, const Scene& scene, int threads, const std::string& method, const Params& params) {
+    RenderSettings st;
+    st.threads = threads;
+    st.spp = 1;
+    FrameBuffer fb;
+    gpt.render(scene, st, fb);
+    const auto t0 = std::chrono::steady_clock::now();
+    (void)reconstruct(method, params, gradient_buffers(fb));
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 std::string default_reference_cache() {

@@ -31,23 +31,25 @@ float channel_sum(const Image& im, int x, int y) {
     return std::isfinite(s) ? std::max(0.f, s) : 0.f;
 }
 
-// Mean over the (2r+1)^2 window around each pixel, clipped at the border.
-std::vector<float> box_mean(const std::vector<float>& v, int W, int H, int r) {
+// Separable filter with the symmetric kernel `k` (2r+1 taps), weights
+// renormalised where the window leaves the image.
+std::vector<float> separable(const std::vector<float>& v, int W, int H, const std::vector<double>& k) {
+    const int r = int(k.size()) / 2;
     std::vector<float> rows(v.size()), out(v.size());
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            double s = 0.0;
-            const int a = std::max(0, x - r), b = std::min(W - 1, x + r);
-            for (int i = a; i <= b; ++i) s += v[size_t(y) * W + i];
-            rows[size_t(y) * W + x] = float(s / double(b - a + 1));
-        }
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            double s = 0.0;
-            const int a = std::max(0, y - r), b = std::min(H - 1, y + r);
-            for (int j = a; j <= b; ++j) s += rows[size_t(j) * W + x];
-            out[size_t(y) * W + x] = float(s / double(b - a + 1));
-        }
+    const auto pass = [&](const std::vector<float>& in, std::vector<float>& to, bool along_rows) {
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                double s = 0.0, w = 0.0;
+                for (int i = -r; i <= r; ++i) {
+                    const int xi = along_rows ? x + i : x, yi = along_rows ? y : y + i;
+                    if (xi < 0 || yi < 0 || xi >= W || yi >= H) continue;
+                    s += k[size_t(i + r)] * in[size_t(yi) * W + xi], w += k[size_t(i + r)];
+                }
+                to[size_t(y) * W + x] = float(s / w);
+            }
+    };
+    pass(v, rows, true);
+    pass(rows, out, false);
     return out;
 }
 
@@ -61,27 +63,6 @@ std::vector<float> median(const std::vector<float>& v, int W, int H, int r) {
                 for (int i = std::max(0, x - r); i <= std::min(W - 1, x + r); ++i) win.push_back(v[size_t(j) * W + i]);
             std::nth_element(win.begin(), win.begin() + win.size() / 2, win.end());
             out[size_t(y) * W + x] = win[win.size() / 2];
-        }
-    return out;
-}
-
-// The publication's [.1 .2 .4 .2 .1] splat, separable, renormalised at the border.
-std::vector<float> smooth(const std::vector<float>& v, int W, int H) {
-    static constexpr float k[5] = {.1f, .2f, .4f, .2f, .1f};
-    std::vector<float> rows(v.size()), out(v.size());
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            float s = 0.f, w = 0.f;
-            for (int i = -2; i <= 2; ++i)
-                if (x + i >= 0 && x + i < W) s += k[i + 2] * v[size_t(y) * W + x + i], w += k[i + 2];
-            rows[size_t(y) * W + x] = s / w;
-        }
-    for (int y = 0; y < H; ++y)
-        for (int x = 0; x < W; ++x) {
-            float s = 0.f, w = 0.f;
-            for (int j = -2; j <= 2; ++j)
-                if (y + j >= 0 && y + j < H) s += k[j + 2] * rows[size_t(y + j) * W + x], w += k[j + 2];
-            out[size_t(y) * W + x] = s / w;
         }
     return out;
 }
@@ -129,13 +110,14 @@ Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) error[size_t(y) * W + x] = channel_sum(v, x, y);
     }
-    const std::vector<float> L = box_mean(bright, W, H, 2);
+    const std::vector<float> L = separable(bright, W, H, std::vector<double>(5, 1.0));  // 5x5 box
     std::vector<float> r(n);
     for (size_t p = 0; p < n; ++p) {
         const double v = std::sqrt(double(error[p]) / (double(L[p]) * double(L[p]) + o.epsilon));
         r[p] = std::isfinite(v) ? float(v) : 0.f;
     }
-    r = smooth(median(r, W, H, o.median_radius), W, H);
+    // The publication's [.1 .2 .4 .2 .1] splat of the median-filtered densities.
+    r = separable(median(r, W, H, o.median_radius), W, H, {.1, .2, .4, .2, .1});
 
     // Density = uniform share + adaptive share, the adaptive part of mean 1
     // capped so that no pixel exceeds max_density: capped pixels are fixed

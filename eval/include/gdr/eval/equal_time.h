@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "gdr/core/params.h"
+#include "gdr/integrators/integrator.h"
 #include "gdr/scene/scene.h"
 
 namespace gdr::eval {
@@ -17,6 +19,12 @@ namespace gdr::eval {
 /// Benchmarks need this because the files' 512-1280 px cameras cost too much
 /// time per sample pass. Throws what load_scene_file throws.
 std::unique_ptr<Scene> load_scene_at_width(const std::string& path, int width);
+
+/// Wall seconds of one `method` solve (with `params`) of a 1-spp render of
+/// `scene` by `gpt` on `threads` threads: the solve time does not depend on
+/// the sample count, so equal-time comparisons take it out of a gradient-domain
+/// method's render budget.
+double solve_seconds(Integrator& gpt, const Scene& scene, int threads, const std::string& method, const Params& params);
 
 /// 64-bit FNV-1a hash of a file's bytes (cache keys); throws InputError if unreadable.
 uint64_t hash_file(const std::string& path);
