@@ -7,12 +7,15 @@
 // shortened by its solve time measured once, so every row's time is its whole
 // cost. Error: relMSE (thesis convention, eps 0.01) against a cached PT
 // reference, averaged over --runs seeds. Prints each row and the ratio of
-// adaptive to uniform relMSE.
+// adaptive to uniform relMSE. The "selected" rows choose per tile between
+// gradient and primal-only samples (AdaptiveRender::Mode::SelectGradients,
+// Kettunen's thesis section 4.3.2) with the same pilot share.
 //
 // Usage: bench_adaptive [--quick] [--scenes a,b] [--width W] [--budget S]
 //          [--runs N] [--pilot SHARE] [--ref-spp N] [--cache DIR] [--threads N]
 //          [--density key=value]...   (AdaptiveOptions: uniform, max, epsilon, median, source)
 //          [--keep-pilot]             (AdaptiveRender::keep_pilot)
+//          [--select key=value]...    (GradientSelectOptions: criterion = model | measured, tile, max)
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -52,6 +55,7 @@ struct Options {
     std::string cache = eval::default_reference_cache();
     AdaptiveOptions density;  // --density key=value
     bool keep_pilot = false;  // --keep-pilot: AdaptiveRender::keep_pilot
+    GradientSelectOptions select;  // --select key=value
 };
 
 Options parse(int argc, char** argv) {
@@ -92,15 +96,42 @@ Options parse(int argc, char** argv) {
                                                       : AdaptiveOptions::Source::Auto;
             else throw ParameterError("bench_adaptive: unknown --density key '" + k + "'");
         }
+        else if (opt == "--select") {
+            // key=value: criterion (model, measured), tile, max.
+            const std::string kv = a.value(opt);
+            const size_t eq = kv.find('=');
+            if (eq == std::string::npos) throw ParameterError("bench_adaptive: --select takes key=value, got '" + kv + "'");
+            const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
+            if (k == "criterion" && (v == "model" || v == "measured"))
+                o.select.criterion = v == "model" ? GradientSelectOptions::Criterion::Model
+                                                  : GradientSelectOptions::Criterion::Measured;
+            else if (k == "tile") o.select.tile = std::stoi(v);
+            else if (k == "max") o.select.max_density = std::stod(v);
+            else throw ParameterError("bench_adaptive: bad --select '" + kv + "'");
+        }
         else if (opt == "--threads") o.threads = int(a.int_value(opt, 0, 1024));
         else if (opt == "-h" || opt == "--help") {
             std::printf("bench_adaptive [--quick] [--scenes a,b] [--width W] [--budget S] [--runs N] [--pilot SHARE]\n"
-                        "               [--ref-spp N] [--cache DIR] [--threads N] [--density key=value]...\n");
+                        "               [--ref-spp N] [--cache DIR] [--threads N] [--density key=value]...\n"
+                        "               [--keep-pilot] [--select key=value]...\n");
             std::exit(0);
         } else throw ParameterError("bench_adaptive: unknown option '" + opt + "'");
     }
     if (!(o.budget > 0.0)) throw ParameterError("bench_adaptive: --budget must be positive");
     return o;
+}
+
+// relMSE (thesis convention) over the pixels where `mask` is `on` (1) or off (0), summed with their count.
+void masked_relmse(const Image& img, const Image& ref, const Image& mask, bool on, double& sum, double& count) {
+    for (int y = 0; y < img.height(); ++y)
+        for (int x = 0; x < img.width(); ++x) {
+            if ((mask.at(x, y) != 0.f) != on) continue;
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(img.at(x, y, c)) - ref.at(x, y, c), r = ref.at(x, y, c);
+                sum += d * d / (r * r + 0.01);
+            }
+            count += 3;
+        }
 }
 
 FrameBuffer reference(const Options& o, const SceneSpec& spec, const Scene& scene) {
@@ -152,24 +183,46 @@ int main(int argc, char** argv) try {
         st.threads = o.threads;
         st.spp = 0;
         FrameBuffer fb;
-        // rows: pt, pt adaptive, gpt+L1, gpt+weighted, adaptive gpt+L1, adaptive gpt+weighted
-        const char* names[6] = {"pt", "pt adaptive", "gpt + L1", "gpt + weighted", "gpt adaptive + L1",
-                                "gpt adaptive + weighted"};
-        double err[6] = {0, 0, 0, 0, 0, 0}, spp[6] = {0, 0, 0, 0, 0, 0};
+        // rows: pt, pt adaptive, gpt+L1, gpt+weighted, adaptive gpt+L1, adaptive gpt+weighted,
+        // selected gpt+L1, selected gpt+weighted (AdaptiveRender::Mode::SelectGradients)
+        constexpr int kRows = 8;
+        const char* names[kRows] = {"pt", "pt adaptive", "gpt + L1", "gpt + weighted", "gpt adaptive + L1",
+                                    "gpt adaptive + weighted", "gpt selected + L1", "gpt selected + weighted"};
+        double err[kRows] = {}, spp[kRows] = {}, share = 0.0;
+        // Per region of the selected render's mask (0: primal-only, 1: gradients):
+        // relMSE sums and counts of the selected and of the uniform weighted result.
+        double region_sel[2] = {}, region_uni[2] = {}, region_n[2] = {}, region_m[2] = {};
+        Image uniform_weighted;
+        AdaptiveRender sel = ad;
+        sel.mode = AdaptiveRender::Mode::SelectGradients;
+        sel.keep_pilot = o.keep_pilot;
+        sel.select = o.select;
         for (int r = 0; r < o.runs; ++r) {
-            for (int adaptive = 0; adaptive < 2; ++adaptive) {
+            for (int adaptive = 0; adaptive < 3; ++adaptive) {
                 st.seed = uint64_t(100 * r + 1);
                 st.time_budget = o.budget;
-                RenderStats rs = adaptive ? render_adaptive(*pt, *scene, st, fb, ad) : pt->render(*scene, st, fb);
-                err[adaptive] += relmse(fb.get("color"), ref, RelMseOptions::thesis()) / o.runs;
-                spp[adaptive] += double(rs.samples) / double(ref.pixel_count()) / o.runs;
+                RenderStats rs;
+                if (adaptive < 2) {
+                    rs = adaptive ? render_adaptive(*pt, *scene, st, fb, ad) : pt->render(*scene, st, fb);
+                    err[adaptive] += relmse(fb.get("color"), ref, RelMseOptions::thesis()) / o.runs;
+                    spp[adaptive] += double(rs.samples) / double(ref.pixel_count()) / o.runs;
+                }
 
                 st.seed = uint64_t(100 * r + 2);
                 st.time_budget = std::max(0.1 * o.budget, o.budget - 2.0 * solve);  // both solves' worth
-                rs = adaptive ? render_adaptive(*gpt, *scene, st, fb, ad) : gpt->render(*scene, st, fb);
+                rs = adaptive == 2 ? render_adaptive(*gpt, *scene, st, fb, sel)
+                     : adaptive   ? render_adaptive(*gpt, *scene, st, fb, ad)
+                                  : gpt->render(*scene, st, fb);
+                if (adaptive == 2) share += std::stod(fb.metadata().at("gradient_share")) / o.runs;
                 const GradientBuffers gb = gradient_buffers(fb);
                 const Image l1 = reconstruct("poisson-l1", Params(), gb);
                 const Image w = reconstruct("poisson-weighted", Params(), gb);
+                if (adaptive == 0) uniform_weighted = w;
+                if (adaptive == 2)
+                    for (int on = 0; on < 2; ++on) {
+                        masked_relmse(w, ref, fb.get("gradient_mask"), on, region_sel[on], region_n[on]);
+                        masked_relmse(uniform_weighted, ref, fb.get("gradient_mask"), on, region_uni[on], region_m[on]);
+                    }
                 for (int k = 0; k < 2; ++k) {
                     const int row = 2 + 2 * adaptive + k;
                     err[row] += relmse(k ? w : l1, ref, RelMseOptions::thesis()) / o.runs;
@@ -178,9 +231,17 @@ int main(int argc, char** argv) try {
             }
         }
         std::printf("\n== %s (%dx%d)\n", spec.name.c_str(), scene->camera().width(), scene->camera().height());
-        for (int k = 0; k < 6; ++k) std::printf("  %-24s %7.1f spp  relMSE %.5f\n", names[k], spp[k], err[k]);
+        for (int k = 0; k < kRows; ++k) std::printf("  %-24s %7.1f spp  relMSE %.5f\n", names[k], spp[k], err[k]);
         std::printf("%-14s adaptive/uniform relMSE: pt %.3f, gpt + L1 %.3f, gpt + weighted %.3f\n", spec.name.c_str(),
                     err[1] / err[0], err[4] / err[2], err[5] / err[3]);
+        std::printf("%-14s selected/uniform relMSE: gpt + L1 %.3f, gpt + weighted %.3f; selected weighted/pt %.3f, "
+                    "uniform weighted/pt %.3f; gradients at %.0f%% of pixels\n",
+                    spec.name.c_str(), err[6] / err[2], err[7] / err[3], err[7] / err[0], err[3] / err[0], 100.0 * share);
+        const auto ratio = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
+        std::printf("%-14s selected/uniform weighted relMSE where primal-only %.3f (%.5f), where gradients %.3f (%.5f)\n",
+                    spec.name.c_str(), ratio(region_sel[0], region_uni[0]),
+                    region_n[0] > 0 ? region_sel[0] / region_n[0] : 0.0, ratio(region_sel[1], region_uni[1]),
+                    region_n[1] > 0 ? region_sel[1] / region_n[1] : 0.0);
         std::fflush(stdout);
     }
     return 0;

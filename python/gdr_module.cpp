@@ -213,8 +213,16 @@ py::object make_layers(gdr::FrameBuffer& fb, py::object stats) {
 /// gdr.render: renders on a thread of its own while this one waits without the GIL (see the file comment).
 py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std::string>& integrator,
                   std::optional<long long> spp, std::optional<long long> seed, int threads, const py::object& params,
-                  const py::object& progress, double time, long long first_sample, double adaptive) {
+                  const py::object& progress, double time, long long first_sample, double adaptive,
+                  double select_gradients) {
     const gdr::SceneFile& sf = scene->sf;
+    if (!(select_gradients == 0.0 || (select_gradients > 0.0 && select_gradients <= 0.5)))
+        throw gdr::ParameterError("render: select_gradients is the pilots' share of the budget, above 0 and at most "
+                                  "0.5 (0: gradients everywhere), got " + std::to_string(select_gradients));
+    if (select_gradients > 0.0 && adaptive > 0.0)
+        throw gdr::ParameterError("render: adaptive and select_gradients are two uses of a pilot; give one of them");
+    const bool select = select_gradients > 0.0;
+    if (select) adaptive = select_gradients;
     if (!(adaptive == 0.0 || (adaptive > 0.0 && adaptive <= 0.5)))
         throw gdr::ParameterError("render: adaptive is the pilot's share of the budget, above 0 and at most 0.5 (0: "
                                   "uniform sampling), got " + std::to_string(adaptive));
@@ -269,6 +277,7 @@ py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std
                 if (adaptive > 0.0) {
                     gdr::AdaptiveRender ad;
                     ad.pilot = adaptive;
+                    if (select) ad.mode = gdr::AdaptiveRender::Mode::SelectGradients;
                     job.stats = gdr::render_adaptive(*integ, *sf.scene, st, job.fb, ad, report);
                 } else {
                     job.stats = integ->render(*sf.scene, st, job.fb, report);
@@ -563,9 +572,9 @@ PYBIND11_MODULE(gdr, m) {
     m.def("render", &render, py::arg("scene"), py::kw_only(), py::arg("integrator") = py::none(),
           py::arg("spp") = py::none(), py::arg("seed") = py::none(), py::arg("threads") = 0,
           py::arg("params") = py::none(), py::arg("progress") = py::none(), py::arg("time") = 0.0,
-          py::arg("first_sample") = 0, py::arg("adaptive") = 0.0,
+          py::arg("first_sample") = 0, py::arg("adaptive") = 0.0, py::arg("select_gradients") = 0.0,
           "render(scene, *, integrator=None, spp=None, seed=None, threads=0, params=None, progress=None,\n"
-          "       time=0.0, first_sample=0, adaptive=0.0) -> gdr.Layers\n\n"
+          "       time=0.0, first_sample=0, adaptive=0.0, select_gradients=0.0) -> gdr.Layers\n\n"
           "Renders the scene and returns its layers ('color', and for gpt 'primal', 'dx', 'dy',\n"
           "'direct', 'reconstruction_l1', ...) as float32 arrays (height, width, channels) with\n"
           "the statistics in .stats (gdr.RenderStats: spp, samples, rays, seconds) and the\n"
@@ -580,6 +589,9 @@ PYBIND11_MODULE(gdr, m) {
           "first_sample: the index of the first sample per pixel (continuing a sequence).\n"
           "adaptive: > 0 samples adaptively (gdr render --adaptive): a pilot of that share of the\n"
           "budget sets each pixel's density; 'spp' and 'sample_density' record counts and density.\n"
+          "select_gradients: > 0, gpt only (gdr render --select-gradients): pilots of that share\n"
+          "choose per tile whether gradients pay; the others take primal-only samples\n"
+          "('gradient_mask', 'sample_density').\n"
           "The GIL is released while rendering. Ctrl-C (KeyboardInterrupt), or any exception\n"
           "raised by the progress callback, stops the render within about a second; the\n"
           "exception is raised when the render has stopped, and the partial image is discarded.");

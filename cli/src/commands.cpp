@@ -63,7 +63,8 @@ const CommandHelp kCommands[] = {
      "gdr render SCENE.json|SCENE.xml [--integrator NAME] [--spp N | --time SECONDS] [--threads N] [--seed S]\n"
      "           [--width W] [--height H] [--resolution WxH] [--set key=value]... [--resume PREVIOUS.exr]\n"
      "           [-D name=value]... [--lenient] [--first-sample K] [--continue] [--exposure STOPS]\n"
-     "           [--adaptive SHARE] [--frame K | --frames FIRST:LAST] -o OUT.exr",
+     "           [--adaptive SHARE | --select-gradients SHARE] [--frame K | --frames FIRST:LAST]\n"
+     "           -o OUT.exr",
      "Renders a scene into a multi-layer EXR (every layer, the settings in its header) and a PNG\n"
      "preview beside it (OUT.png).\n"
      "  --integrator NAME     pt, gpt, bdpt, gbdpt, tgpt or any registered one (gdr list); default: the scene's\n"
@@ -87,6 +88,11 @@ const CommandHelp kCommands[] = {
      "                        noisy, and the rest of the budget goes there; the pilot's samples are not\n"
      "                        kept, so every pixel stays unbiased. The layers spp and sample_density\n"
      "                        record each pixel's count and density; --resume keeps the density\n"
+     "  --select-gradients SHARE\n"
+     "                        gpt: pilots of SHARE of the budget decide per 16x16 tile whether gradients\n"
+     "                        pay for their cost; the other pixels take primal-only samples, as many as\n"
+     "                        fit in the same time (layers gradient_mask, sample_density; --resume keeps\n"
+     "                        both)\n"
      "  -D name=value         a Mitsuba XML scene's $parameter (overrides its <default>)\n"
      "  --lenient             a Mitsuba XML scene's unsupported elements become warnings and are skipped\n"
      "  --exposure STOPS      exposure of the PNG preview\n"

@@ -139,7 +139,7 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     long long spp = -1, seed = -1, first_sample = -1;
     bool continue_part = false;  // --continue: render OUT, or continue the OUT already there
     int width = 0, height = 0;
-    double time_budget = 0.0, exposure = 0.0, adaptive = 0.0;
+    double time_budget = 0.0, exposure = 0.0, adaptive = 0.0, select_gradients = 0.0;
     int threads = 0;
     std::vector<std::string> sets, scene_sets;
     SceneFileOptions scene_options;
@@ -174,6 +174,12 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
             if (!(adaptive > 0.0 && adaptive <= 0.5))
                 throw ParameterError("option --adaptive takes the pilot's share of the budget, above 0 and at most 0.5, "
                                      "got '" + v + "'");
+        } else if (opt == "--select-gradients") {
+            const std::string v = a.value(opt);
+            select_gradients = ArgReader::parse_real(opt, v);
+            if (!(select_gradients > 0.0 && select_gradients <= 0.5))
+                throw ParameterError("option --select-gradients takes the pilots' share of the budget, above 0 and at "
+                                     "most 0.5, got '" + v + "'");
         }
         else if (!opt.empty() && opt[0] == '-') throw ParameterError("render: unknown option '" + opt + "'\n" + usage("render"));
         else if (scene_path.empty()) scene_path = opt;
@@ -187,13 +193,18 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
                              resume_path + "'s; give one of them");
     if (continue_part && !resume_path.empty())
         throw ParameterError("render: --continue resumes OUT itself; it takes no --resume");
+    if (adaptive > 0.0 && select_gradients > 0.0)
+        throw ParameterError("render: --adaptive and --select-gradients are two uses of a pilot; give one of them");
+    const std::string pilot_option = select_gradients > 0.0 ? "--select-gradients" : "--adaptive";
+    if (select_gradients > 0.0) adaptive = select_gradients;
     if (adaptive > 0.0 && (first_sample >= 0 || continue_part))
-        throw ParameterError("render: --adaptive chooses each render's density from its own pilot, so parts of one "
+        throw ParameterError("render: " + pilot_option + " chooses each render's density from its own pilot, so parts of one "
                              "seed (--first-sample, --continue) would not continue each other's samples; render "
                              "parts with different seeds instead (gdr merge pools them pixel by pixel)");
     if (adaptive > 0.0 && !resume_path.empty())
         throw ParameterError("render: --resume continues " + resume_path +
-                             " with its own sample density (if it has one); it takes no --adaptive");
+                             " with its own sample density and gradient mask (if it has them); it takes no " +
+                             pilot_option);
     if (continue_part && time_budget > 0.0)
         throw ParameterError("render: --continue renders a part of a fixed sample count (--spp), not --time");
     check_output_path(out_path);
@@ -307,6 +318,7 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
                              (frame ? " (frame " + std::to_string(*frame) + " of seed " + std::to_string(seed) + ")" : ""));
         st.seed = previous.seed;
         if (previous.fb.has("sample_density")) st.sample_density = &previous.fb.get("sample_density");
+        if (previous.fb.has("gradient_mask")) st.gradient_mask = &previous.fb.get("gradient_mask");
         const auto mixed = previous.fb.metadata().find("sample_density");
         if (mixed != previous.fb.metadata().end() && mixed->second == "mixed")
             throw InputError(resume_path + ": merged from adaptive renders with different sample densities, so no "
@@ -410,6 +422,7 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
             if (adaptive > 0.0) {
                 AdaptiveRender ad;
                 ad.pilot = adaptive;
+                if (select_gradients > 0.0) ad.mode = AdaptiveRender::Mode::SelectGradients;
                 rs = render_adaptive(*integrator, *sf.scene, st, fb, ad, show);
             } else {
                 rs = integrator->render(*sf.scene, st, fb, show);

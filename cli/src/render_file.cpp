@@ -191,6 +191,17 @@ StoredRender read_stored_render(const std::string& file) {
     if (density && density->channels() != 1)
         throw InputError(file + ": layer 'sample_density' has " + std::to_string(density->channels()) +
                          " channels, not 1");
+    if (r.fb.has("gradient_mask")) {
+        // Which pixels took gradient samples (RenderSettings::gradient_mask).
+        const Image& mask = r.fb.get("gradient_mask");
+        if (mask.channels() != 1)
+            throw InputError(file + ": layer 'gradient_mask' has " + std::to_string(mask.channels()) + " channels, not 1");
+        for (int y = 0; y < mask.height(); ++y)
+            for (int x = 0; x < mask.width(); ++x)
+                if (const float v = mask.at(x, y); v != 0.f && v != 1.f)
+                    throw InputError(fmt::format("{}: layer 'gradient_mask' holds {} at pixel ({}, {}), not 0 or 1",
+                                                 file, v, x, y));
+    }
     for (int y = 0; y < spp.height(); ++y)
         for (int x = 0; x < spp.width(); ++x) {
             double want = double(r.spp);

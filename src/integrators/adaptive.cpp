@@ -10,6 +10,8 @@
 
 #include "gdr/core/error.h"
 #include "gdr/core/sampler.h"
+#include "gdr/integrators/gpt.h"
+#include "gdr/reconstruct/reconstructor.h"
 
 namespace gdr {
 
@@ -146,10 +148,198 @@ Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& o
     return density;
 }
 
+double gls_variance_factor(double r) {
+    if (!(r > 0.0)) return 0.0;
+    if (!std::isfinite(r)) return 1.0;
+    // Mean of r / (r + lambda) over the cosine (DCT) frequencies of an
+    // N x N image, lambda = 4 sin^2(pi i / 2N) + 4 sin^2(pi j / 2N): the
+    // spectrum of the solution's covariance (w_p + w_g L)^-1 over the
+    // primal's variance 1 / w_p. N = 64 is within 1% of larger images for
+    // r >= 1e-4; the constant term (lambda = 0) gives the floor 1 / N^2.
+    constexpr int N = 64;
+    static const std::vector<double> lambda = [] {
+        std::vector<double> l(size_t(N) * N);
+        const double pi = 3.14159265358979323846;
+        for (int j = 0; j < N; ++j)
+            for (int i = 0; i < N; ++i) {
+                const double a = std::sin(pi * i / (2.0 * N)), b = std::sin(pi * j / (2.0 * N));
+                l[size_t(j) * N + i] = 4.0 * (a * a + b * b);
+            }
+        return l;
+    }();
+    double s = 0.0;
+    for (double l : lambda) s += r / (r + l);
+    return s / double(lambda.size());
+}
+
+namespace {
+
+void check_select_options(const GradientSelectOptions& o) {
+    if (o.tile < 1) throw ParameterError(fmt::format("gradient selection: tile must be >= 1, got {}", o.tile));
+    if (!(o.max_density >= 1.0 && o.max_density <= kMaxSampleDensity))
+        throw ParameterError(fmt::format("gradient selection: max_density must be in [1, {}], got {}",
+                                         kMaxSampleDensity, o.max_density));
+}
+
+void check_seconds(double tg, double tp) {
+    if (!(tg > 0.0 && tp > 0.0 && std::isfinite(tg) && std::isfinite(tp)))
+        throw ParameterError(fmt::format("gradient selection: seconds per pass must be positive, got {} and {}", tg, tp));
+}
+
+// The mask and densities from per-pixel costs (variance times seconds, any
+// common unit) with and without gradients: a tile keeps its gradients iff
+// the sum of `with` over it is below the sum of `without`.
+GradientSelection tile_selection(int W, int H, double cost, const GradientSelectOptions& o,
+                                 const std::vector<double>& with, const std::vector<double>& without) {
+    GradientSelection sel;
+    sel.cost_ratio = cost;
+    sel.mask = Image(W, H, 1);
+    long long on = 0;
+    for (int ty = 0; ty < H; ty += o.tile)
+        for (int tx = 0; tx < W; tx += o.tile) {
+            double a = 0, b = 0;
+            for (int y = ty; y < std::min(H, ty + o.tile); ++y)
+                for (int x = tx; x < std::min(W, tx + o.tile); ++x)
+                    a += with[size_t(y) * W + x], b += without[size_t(y) * W + x];
+            const bool pays = W * H > 1 && a < b;
+            for (int y = ty; y < std::min(H, ty + o.tile); ++y)
+                for (int x = tx; x < std::min(W, tx + o.tile); ++x) sel.mask.at(x, y) = pays ? 1.f : 0.f;
+            if (pays) on += (std::min(H, ty + o.tile) - ty) * (std::min(W, tx + o.tile) - tx);
+        }
+    const double n = double(W) * double(H);
+    sel.gradient_share = n > 0 ? double(on) / n : 1.0;
+    // Equal time per pixel: a primal-only pixel takes `cost` samples per
+    // gradient pixel's one, then all scaled to mean 1.
+    const double k = std::clamp(cost, 1.0, o.max_density);
+    const double mean = sel.gradient_share + (1.0 - sel.gradient_share) * k;
+    sel.density = Image(W, H, 1);
+    for (size_t i = 0; i < sel.density.values().size(); ++i)
+        sel.density.values()[i] = float((sel.mask.values()[i] != 0.f ? 1.0 : k) / mean);
+    return sel;
+}
+
+}  // namespace
+
+GradientSelection select_gradient_pixels(const FrameBuffer& g, double tg, const FrameBuffer& p, double tp,
+                                         const GradientSelectOptions& o) {
+    check_select_options(o);
+    check_seconds(tg, tp);
+    const int W = g.width(), H = g.height();
+    if (p.width() != W || p.height() != H)
+        throw ParameterError(fmt::format("gradient selection: the pilots are {}x{} and {}x{}", W, H, p.width(),
+                                         p.height()));
+    const Image& vp = pilot_layer(g, "primal_variance", "the gradient pilot's primal variance");
+    const Image& vx = pilot_layer(g, "dx_variance", "the gradients' variance");
+    const Image& vy = pilot_layer(g, "dy_variance", "the gradients' variance");
+    const Image& vpt = pilot_layer(p, "primal_variance", "the primal-only pilot's variance");
+    // F on a grid of log r (1e-6 to 1e6, 16 steps a decade), interpolated:
+    // the exact mean over 4096 frequencies per pixel would cost seconds at 720p.
+    static const std::vector<double> table = [] {
+        std::vector<double> t(12 * 16 + 1);
+        for (size_t i = 0; i < t.size(); ++i) t[i] = gls_variance_factor(std::pow(10.0, -6.0 + double(i) / 16.0));
+        return t;
+    }();
+    const auto F = [&](double r) {
+        if (!(r > 0.0)) return 0.0;
+        const double u = std::clamp((std::log10(r) + 6.0) * 16.0, 0.0, double(table.size() - 1));
+        const size_t i = std::min(size_t(u), table.size() - 2);
+        return table[i] + (u - double(i)) * (table[i + 1] - table[i]);
+    };
+    // Per pixel, the weighted solve's variance vp F(vg / vp) with vg the mean
+    // of its edges' gradient variances: bounded by vp, so one outlier
+    // gradient (which the solve drops anyway) cannot outweigh its tile.
+    std::vector<double> with(size_t(W) * H), without(size_t(W) * H);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double gv = 0.0;
+            int m = 0;
+            if (x + 1 < W) gv += channel_sum(vx, x, y), ++m;
+            if (x > 0) gv += channel_sum(vx, x - 1, y), ++m;
+            if (y + 1 < H) gv += channel_sum(vy, x, y), ++m;
+            if (y > 0) gv += channel_sum(vy, x, y - 1), ++m;
+            const double v = channel_sum(vp, x, y);
+            with[size_t(y) * W + x] = tg * (m > 0 && v > 0.0 ? v * F(gv / m / v) : v);
+            without[size_t(y) * W + x] = tp * channel_sum(vpt, x, y);
+        }
+    return tile_selection(W, H, tg / tp, o, with, without);
+}
+
+GradientSelection select_gradient_pixels(const SelectionPilots& pl, const GradientSelectOptions& o) {
+    check_select_options(o);
+    check_seconds(pl.gradient_seconds_per_pass, pl.primal_seconds_per_pass);
+    for (const FrameBuffer* fb : {pl.gradient[0], pl.gradient[1], pl.primal[0], pl.primal[1]})
+        if (!fb) throw ParameterError("gradient selection: a pilot is missing (two of each kind are needed)");
+    if (pl.gradient_passes < 1 || pl.primal_passes < 1)
+        throw ParameterError(fmt::format("gradient selection: the pilots' passes must be >= 1, got {} and {}",
+                                         pl.gradient_passes, pl.primal_passes));
+    const int W = pl.gradient[0]->width(), H = pl.gradient[0]->height();
+    for (const FrameBuffer* fb : {pl.gradient[1], pl.primal[0], pl.primal[1]})
+        if (fb->width() != W || fb->height() != H)
+            throw ParameterError(fmt::format("gradient selection: the pilots are {}x{} and {}x{}", W, H, fb->width(),
+                                             fb->height()));
+    // Each gradient pilot's reconstruction: its own layer where it has the method's.
+    Image rec[2];
+    for (int i = 0; i < 2; ++i) {
+        const FrameBuffer& fb = *pl.gradient[i];
+        if (o.method == "poisson-weighted" && fb.has("reconstruction_weighted")) rec[i] = fb.get("reconstruction_weighted");
+        else rec[i] = reconstruct(o.method, Params("gradient selection"), gradient_buffers(fb));
+    }
+    const Image& pa = pilot_layer(*pl.primal[0], "color", "the primal-only pilot's colour");
+    const Image& pb = pilot_layer(*pl.primal[1], "color", "the primal-only pilot's colour");
+    const Image& ca = pilot_layer(*pl.gradient[0], "color", "the gradient pilot's colour");
+    const Image& cb = pilot_layer(*pl.gradient[1], "color", "the gradient pilot's colour");
+    // Variance per sample times seconds per sample, in relMSE's units.
+    const double kg = double(pl.gradient_passes) * pl.gradient_seconds_per_pass;
+    const double kp = double(pl.primal_passes) * pl.primal_seconds_per_pass;
+    std::vector<double> with(size_t(W) * H), without(size_t(W) * H);
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            double a = 0.0, b = 0.0;
+            for (int c = 0; c < 3; ++c) {
+                const double m = 0.25 * (double(pa.at(x, y, c)) + pb.at(x, y, c) + ca.at(x, y, c) + cb.at(x, y, c));
+                const double den = 2.0 * (m * m + 0.01);
+                const double dr = double(rec[0].at(x, y, c)) - rec[1].at(x, y, c);
+                const double dp = double(pa.at(x, y, c)) - pb.at(x, y, c);
+                a += std::isfinite(dr) ? dr * dr / den : 0.0;
+                b += std::isfinite(dp) ? dp * dp / den : 0.0;
+            }
+            with[size_t(y) * W + x] = kg * a, without[size_t(y) * W + x] = kp * b;
+        }
+    return tile_selection(W, H, pl.gradient_seconds_per_pass / pl.primal_seconds_per_pass, o, with, without);
+}
+
 // Fewest passes a timed pilot takes: per-sample variances from fewer are mostly noise.
 constexpr long long kMinPilotSpp = 4;
 
 uint64_t pilot_seed(uint64_t seed) { return mix64(seed ^ 0x70696c6f74ull); }  // "pilot"
+
+namespace {
+
+// A pilot render of `st` (its seed, spp and sample 0 already set): with a
+// time budget > 0 in `seconds`, at least st.spp passes and then whole
+// passes until `seconds` are spent (or the render is cancelled).
+RenderStats run_pilot(Integrator& integrator, const Scene& scene, const RenderSettings& st, double seconds,
+                      FrameBuffer& fb, const ProgressFn& progress) {
+    const auto t0 = std::chrono::steady_clock::now();
+    RenderStats ps = integrator.render(scene, st, fb, progress);
+    if (seconds > 0.0) {
+        const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        if (spent < seconds && !(st.cancel && st.cancel->load())) {
+            RenderSettings more = st;
+            more.spp = 0;
+            more.first_sample = ps.spp;
+            more.time_budget = seconds - spent;
+            FrameBuffer rest;
+            const RenderStats ms = integrator.render(scene, more, rest, progress);
+            merge_renders(fb, rest);
+            ps.spp += ms.spp, ps.samples += ms.samples, ps.rays += ms.rays, ps.nonfinite += ms.nonfinite;
+        }
+    }
+    ps.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return ps;
+}
+
+}  // namespace
 
 RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const RenderSettings& st, FrameBuffer& out,
                             const AdaptiveRender& ad, const ProgressFn& progress) {
@@ -158,6 +348,9 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
                                          ad.pilot));
     if (st.sample_density)
         throw ParameterError("adaptive sampling: the render already has a sample density (a resumed render keeps its own)");
+    const bool select = ad.mode == AdaptiveRender::Mode::SelectGradients;
+    if (select && st.gradient_mask)
+        throw ParameterError("gradient selection: the render already has a gradient mask (a resumed render keeps its own)");
     const bool timed = st.time_budget > 0.0;
     if (!timed && st.spp < 2) throw ParameterError("adaptive sampling needs at least 2 spp: 1 for the pilot, 1 to adapt");
     RenderSettings pilot = st;
@@ -175,33 +368,76 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
         pilot.time_budget = 0.0;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    FrameBuffer pilot_fb;
+    const auto since = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     const double share = timed ? ad.pilot : double(pilot_spp) / double(st.spp);
     const ProgressFn pilot_progress = progress ? ProgressFn([&](const Progress& p) {
         Progress q = p;
         q.fraction = share * p.fraction;
         progress(q);
     }) : ProgressFn();
-    RenderStats ps = integrator.render(scene, pilot, pilot_fb, pilot_progress);
-    if (timed) {
-        const double spent = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        if (spent < ad.pilot * st.time_budget && !(st.cancel && st.cancel->load())) {
-            RenderSettings more = pilot;
-            more.spp = 0;
-            more.first_sample = ps.spp;
-            more.time_budget = ad.pilot * st.time_budget - spent;
-            FrameBuffer rest;
-            const RenderStats ms = integrator.render(scene, more, rest, pilot_progress);
-            merge_renders(pilot_fb, rest);
-            ps.spp += ms.spp, ps.samples += ms.samples, ps.rays += ms.rays, ps.nonfinite += ms.nonfinite;
+
+    RenderStats ps;
+    FrameBuffer pilot_fb;
+    Image density;
+    GradientSelection selection;
+    if (select) {
+        const bool measured = ad.select.criterion == GradientSelectOptions::Criterion::Measured;
+        const int halves = measured ? 2 : 1;  // independent renders of each kind
+        const auto per_pass = [](const RenderStats& r) { return r.seconds / double(std::max(1LL, r.spp)); };
+        // Primal-only samples first: an integrator without gradients refuses
+        // the mask before any time is spent.
+        const Image none(scene.camera().width(), scene.camera().height(), 1);
+        RenderSettings primal = pilot;
+        primal.gradient_mask = &none;
+        if (measured) primal.spp = std::max(1LL, primal.spp / 2);
+        FrameBuffer primal_fb[2], gradient_fb[2];
+        double primal_seconds = 0.0;
+        for (int i = 0; i < halves; ++i) {
+            primal.seed = mix64(pilot.seed ^ (0x7072696d616cull + uint64_t(i)));  // "primal"
+            const RenderStats pp = integrator.render(scene, primal, primal_fb[i], pilot_progress);
+            primal_seconds += pp.seconds;
+            ps.samples += pp.samples, ps.rays += pp.rays, ps.nonfinite += pp.nonfinite;
         }
+        const double primal_per_pass = primal_seconds / double(halves * primal.spp);
+        // The gradient pilots: the first takes its share of the time, the second as many passes.
+        RenderSettings gradient = pilot;
+        if (measured) gradient.spp = std::max(1LL, gradient.spp / 2);
+        const double left = timed ? ad.pilot * st.time_budget - since() : 0.0;
+        RenderStats g0 = run_pilot(integrator, scene, gradient, timed ? std::max(0.0, left / halves) : 0.0,
+                                   gradient_fb[0], pilot_progress);
+        double gradient_seconds = g0.seconds;
+        long long gradient_passes = g0.spp;
+        ps.spp += g0.spp, ps.samples += g0.samples, ps.rays += g0.rays, ps.nonfinite += g0.nonfinite;
+        if (measured) {
+            gradient.seed = mix64(pilot.seed ^ 0x6772616469656e74ull);  // "gradient"
+            gradient.spp = g0.spp;
+            const RenderStats g1 = integrator.render(scene, gradient, gradient_fb[1], pilot_progress);
+            gradient_seconds += g1.seconds;
+            ps.spp += g1.spp, ps.samples += g1.samples, ps.rays += g1.rays, ps.nonfinite += g1.nonfinite;
+            SelectionPilots pilots;
+            pilots.gradient[0] = &gradient_fb[0], pilots.gradient[1] = &gradient_fb[1];
+            pilots.primal[0] = &primal_fb[0], pilots.primal[1] = &primal_fb[1];
+            pilots.gradient_passes = gradient_passes, pilots.primal_passes = primal.spp;
+            pilots.gradient_seconds_per_pass = gradient_seconds / double(2 * gradient_passes);
+            pilots.primal_seconds_per_pass = primal_per_pass;
+            selection = select_gradient_pixels(pilots, ad.select);
+            pilot_fb = std::move(gradient_fb[0]);
+            merge_renders(pilot_fb, gradient_fb[1]);  // kept, if it is, as one pilot
+        } else {
+            selection = select_gradient_pixels(gradient_fb[0], per_pass(g0), primal_fb[0], primal_per_pass, ad.select);
+            pilot_fb = std::move(gradient_fb[0]);
+        }
+        density = std::move(selection.density);
+    } else {
+        ps = run_pilot(integrator, scene, pilot, timed ? ad.pilot * st.time_budget : 0.0, pilot_fb, pilot_progress);
+        density = adaptive_sample_density(pilot_fb, ad.density);
     }
-    const Image density = adaptive_sample_density(pilot_fb, ad.density);
     if (!ad.keep_pilot) pilot_fb = FrameBuffer();
-    const double pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double pilot_seconds = since();
 
     RenderSettings main = st;
     main.sample_density = &density;
+    if (select) main.gradient_mask = &selection.mask;
     if (timed) main.time_budget = std::max(1e-3, st.time_budget - pilot_seconds);
     else main.spp = st.spp - pilot_spp;
     RenderStats rs = integrator.render(scene, main, out, progress ? ProgressFn([&](const Progress& p) {
@@ -212,10 +448,18 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
         progress(q);
     }) : ProgressFn());
     if (ad.keep_pilot) {
-        // Each pixel weighted by its own counts in both renders.
+        // Each pixel weighted by its own counts in both renders. The gradient
+        // pilot has gradients everywhere: where the render has none, the
+        // merged edges become the merged primal's differences.
+        if (select) pilot_fb.set("gradient_mask", selection.mask);
         merge_renders(out, pilot_fb);
+        if (select) fill_masked_gradients(out);
         integrator.update_merged(out);
         out.metadata()["adaptive_pilot_kept"] = "true";
+    }
+    if (select) {
+        out.metadata()["gradient_share"] = fmt::format("{:.4f}", selection.gradient_share);
+        out.metadata()["gradient_cost_ratio"] = fmt::format("{:.3f}", selection.cost_ratio);
     }
     out.metadata()["adaptive_pilot_spp"] = std::to_string(ps.spp);
     out.metadata()["adaptive_pilot_seconds"] = fmt::format("{:.3f}", pilot_seconds);

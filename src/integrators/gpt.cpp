@@ -1,7 +1,11 @@
 // Gradient-domain path tracing: every base path is shifted to its four
 // neighbours; the MIS-weighted differences give the gradients dx, dy and the
 // weighted base and offset contributions give the primal image.
+#include <algorithm>
+#include <string>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 #include "gdr/integrators/gpt.h"
 
@@ -253,6 +257,35 @@ void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::strin
     if (l1) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
     if (l2) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
     if (neural) fb.set("reconstruction_neural", reconstruct("neural", Params(who), gb));
+}
+
+void fill_masked_gradients(FrameBuffer& fb) {
+    if (!fb.has("gradient_mask")) return;
+    const Image& mask = fb.get("gradient_mask");
+    const Image& p = fb.get("primal");
+    const Image& pv = fb.get("primal_variance");
+    const Image* spp = fb.has("spp") ? &fb.get("spp") : nullptr;
+    const int W = fb.width(), H = fb.height();
+    // The gradient layers: dx / dy and every dx_<shift> / dy_<shift> with its variance.
+    std::vector<std::pair<std::string, bool>> layers;  // name, horizontal
+    for (const std::string& name : fb.names()) {
+        const bool var = name.size() > 9 && name.compare(name.size() - 9, 9, "_variance") == 0;
+        if (var) continue;
+        if (name == "dx" || name.rfind("dx_", 0) == 0) layers.push_back({name, true});
+        if (name == "dy" || name.rfind("dy_", 0) == 0) layers.push_back({name, false});
+    }
+    for (const auto& [name, horizontal] : layers) {
+        Image& g = fb.get(name);
+        Image* gv = fb.has(name + "_variance") ? &fb.get(name + "_variance") : nullptr;
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x) {
+                const int qx = horizontal ? x + 1 : x, qy = horizontal ? y : y + 1;
+                if (qx >= W || qy >= H || (mask.at(x, y) != 0.f && mask.at(qx, qy) != 0.f)) continue;
+                g.set_rgb(x, y, p.rgb(qx, qy) - p.rgb(x, y));
+                const float r = spp ? spp->at(x, y) / std::max(1.f, spp->at(qx, qy)) : 1.f;
+                if (gv) gv->set_rgb(x, y, pv.rgb(x, y) + r * pv.rgb(qx, qy));
+            }
+    }
 }
 
 void register_gpt(Registry<Integrator>& r) {

@@ -82,6 +82,7 @@ public:
 
 protected:
     std::vector<SlotSpec> slots() const override { return half_slots(""); }
+    bool takes_gradient_mask() const override { return true; }
 
     /// The slots of one set of G-PT samples, each name prefixed with
     /// `prefix`: half_floats() floats of a sample, in the order
@@ -144,9 +145,13 @@ protected:
             sampler.set_dimension(dims::kFilm);
             film[j] = Vec2(float(px), float(py)) + sampler.next2d();
             bool* inside = scratch.inside[j];
+            // A pair is formed only where both pixels take gradients
+            // (RenderSettings::gradient_mask): elsewhere, as at the border, the
+            // base estimates its pixel alone, and no offset ray is traced.
+            const bool own = gradients_at(px, py);
             for (int d = 0; d < kDirs; ++d) {
                 const int nx = px + kDx[d], ny = py + kDy[d];
-                inside[d] = nx >= 0 && ny >= 0 && nx < W && ny < H;
+                inside[d] = own && nx >= 0 && ny >= 0 && nx < W && ny < H && gradients_at(nx, ny);
             }
         }
         // The jobs' camera rays and their offsets' as full packets.
@@ -332,6 +337,8 @@ protected:
         out.set("albedo", std::move(im[1]));
         out.set("normal", std::move(im[2]));
         out.set("depth", std::move(im[3]));
+        // Edges with a primal-only pixel have no gradient estimate.
+        if (masked()) fill_masked_gradients(out);
         // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
         if (acc.derived) recon_.add(out, acc.spp, who_);
     }

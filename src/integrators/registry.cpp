@@ -45,6 +45,12 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
     // render) still merges.
     const auto derived = [](const std::string& name) { return name.rfind("reconstruction", 0) == 0; };
     const auto own = [](const std::string& name) { return name == "sample_density"; };  // see below
+    // Which pixels took gradient samples: pooling renders of different masks
+    // would mix primal-difference edges with estimated ones.
+    if (into.has("gradient_mask") != other.has("gradient_mask") ||
+        (into.has("gradient_mask") && into.get("gradient_mask").values() != other.get("gradient_mask").values()))
+        throw ParameterError("merge: the renders took gradient samples at different pixels (their 'gradient_mask' "
+                             "layers differ or only one has one)");
     for (const auto& name : into.names())
         if (!other.has(name) && !derived(name) && !own(name))
             throw ParameterError("merge: layer '" + name + "' is missing from the second render");
@@ -107,7 +113,7 @@ void merge_renders(FrameBuffer& into, const FrameBuffer& other) {
             for (size_t i = 0; i < a.values().size(); ++i) a.values()[i] += b.values()[i];
             continue;
         }
-        if (name == "sample_density") continue;  // equal in both
+        if (name == "sample_density" || name == "gradient_mask") continue;  // equal in both
         const size_t ch = size_t(a.channels());
         for (size_t i = 0; i < a.values().size(); ++i)
             a.values()[i] = float((double(a.values()[i]) * ca[i / ch] + double(b.values()[i]) * cb[i / ch]) /

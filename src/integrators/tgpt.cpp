@@ -28,6 +28,10 @@ public:
     bool shares_frame_samples() const override { return true; }
 
 protected:
+    // Its temporal gradients pair every pixel with the previous frame's: a
+    // mask of spatial gradients alone is not defined for it.
+    bool takes_gradient_mask() const override { return false; }
+
     std::vector<SlotSpec> slots() const override {
         std::vector<SlotSpec> s = half_slots(kHalfA);
         for (SlotSpec& b : half_slots(kHalfB)) s.push_back(std::move(b));

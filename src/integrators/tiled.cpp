@@ -143,8 +143,9 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     struct Release {
         std::atomic<bool>& flag;
         const Image*& density;
-        ~Release() { flag = false, density = nullptr; }
-    } release{rendering_, density_};
+        const Image*& mask;
+        ~Release() { flag = false, density = nullptr, mask = nullptr; }
+    } release{rendering_, density_, mask_};
     if (st.time_budget <= 0.0 && st.spp <= 0) throw ParameterError("spp must be positive");
     if (st.first_sample < 0) throw ParameterError("first sample index must be non-negative");
     // A sample's number is 32 bits of its sampler key: past 2^32 a pixel's
@@ -178,7 +179,22 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                              "samples a sampler numbers",
                                              most));
     }
+    const Image* mask = st.gradient_mask;
+    if (mask) {
+        if (!takes_gradient_mask())
+            throw ParameterError("gradient mask: this integrator does not take one (only gpt chooses per pixel whether "
+                                 "to estimate gradients)");
+        if (mask->width() != W || mask->height() != H || mask->channels() != 1)
+            throw ParameterError(fmt::format("gradient mask: it is {}x{} with {} channels, not {}x{} with 1",
+                                             mask->width(), mask->height(), mask->channels(), W, H));
+        for (int y = 0; y < H; ++y)
+            for (int x = 0; x < W; ++x)
+                if (const float m = mask->at(x, y); m != 0.f && m != 1.f)
+                    throw ParameterError(
+                        fmt::format("gradient mask: pixel ({}, {}) holds {}, not 0 or 1", x, y, m));
+    }
     density_ = density;
+    mask_ = mask;
     prepare(scene);
     begin_render(scene, st);
     const std::vector<SlotSpec> specs = slots();
@@ -516,6 +532,9 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     acc.offset_ = offset, acc.var_offset_ = var_offset;
     acc.splat_sum_ = splat_sum, acc.splat_sum2_ = splat_sum2, acc.splat_layers_ = splat_layers;
     out = FrameBuffer(W, H);
+    // The mask fixed which pixels have gradients: a resumed or merged render
+    // needs the same, and finalize()'s reconstructions read it.
+    if (mask) out.set("gradient_mask", *mask);
     arena.execute([&] { finalize(acc, out); });
     if (density) {
         // Each pixel's own count, and the density that fixed it (a resumed or

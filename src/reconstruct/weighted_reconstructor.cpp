@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "gdr/core/error.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/reconstruct/weighted.h"
 
@@ -86,6 +87,16 @@ protected:
         vp.primal_variance = view(in.primal_variance), vp.dx_variance = view(in.dx_variance);
         vp.dy_variance = view(in.dy_variance);
         vp.spp = in.spp->data();
+        // A gpt render with a gradient mask: its masked edges hold primal
+        // differences, not gradient estimates (RenderSettings::gradient_mask).
+        std::vector<unsigned char> enabled;
+        if (const Image* mask = in.layer("gradient_mask")) {
+            if (mask->width() != in.primal->width() || mask->height() != in.primal->height() || mask->channels() != 1)
+                throw InputError("poisson-weighted: layer 'gradient_mask' must have 1 channel and primal's size");
+            enabled.resize(mask->values().size());
+            for (size_t k = 0; k < enabled.size(); ++k) enabled[k] = mask->values()[k] != 0.f;
+            vp.gradient_enabled = enabled.data();
+        }
         Image out(in.primal->width(), in.primal->height(), in.primal->channels());
         poisson_variance_weighted(vp, o_, out.data());
         return out;

@@ -107,6 +107,21 @@ class RenderMatchesTheTool(unittest.TestCase):
         with self.assertRaises(gdr.ParameterError):
             gdr.render(scene, spp=8, adaptive=0.9)
 
+    def test_gradient_selection_records_its_mask(self):
+        # The choice reads the pilots' measured seconds per pass, so only its
+        # records are compared, not the image with the tool's.
+        scene = gdr.load_scene(SMALL)
+        img = gdr.render(scene, integrator="gpt", spp=8, seed=2, select_gradients=0.25)
+        mask = img["gradient_mask"]
+        self.assertEqual(mask.shape[2], 1)
+        self.assertTrue(((mask == 0) | (mask == 1)).all())
+        self.assertIn("gradient_share", img.metadata)
+        self.assertIn("sample_density", img)
+        with self.assertRaises(gdr.ParameterError):
+            gdr.render(scene, spp=8, adaptive=0.2, select_gradients=0.2)
+        with self.assertRaises(gdr.ParameterError):
+            gdr.render(scene, integrator="pt", spp=8, select_gradients=0.2)
+
 
 class Progress(unittest.TestCase):
     def test_the_callback_runs_on_the_calling_thread_and_ends_at_one(self):

@@ -5,6 +5,8 @@
 // gradients, not of the colours (ALGORITHMS.md section 6).
 #pragma once
 
+#include <string>
+
 #include "gdr/core/image.h"
 #include "gdr/integrators/integrator.h"
 
@@ -37,10 +39,81 @@ struct AdaptiveOptions {
 /// layer or a bad option.
 Image adaptive_sample_density(const FrameBuffer& pilot, const AdaptiveOptions& options = {});
 
+/// Options of select_gradient_pixels().
+struct GradientSelectOptions {
+    /// How a tile's variance with gradients is found: measured, as the spread
+    /// between the reconstructions of two independent pilots (whatever the
+    /// reconstruction does: L1, outlier rejection), or modelled from the
+    /// variance layers as the weighted L2 solve's (see select_gradient_pixels()).
+    enum class Criterion { Measured, Model };
+    Criterion criterion = Criterion::Model;
+    int tile = 16;             ///< Side of the square blocks decided together (pixels, >= 1).
+    double max_density = 8.0;  ///< Most samples a primal-only pixel takes per gradient pixel's (>= 1).
+    /// Criterion::Measured: the reconstructor whose variance is measured (its
+    /// defaults; its layer "reconstruction_weighted" is reused for poisson-weighted).
+    std::string method = "poisson-weighted";
+};
+
+/// Two independent pilots of each kind for Criterion::Measured: renders of
+/// one scene with different seeds, the two of a kind with equal passes.
+struct SelectionPilots {
+    const FrameBuffer* gradient[2] = {nullptr, nullptr};  ///< gpt renders with gradients everywhere.
+    const FrameBuffer* primal[2] = {nullptr, nullptr};    ///< gpt renders with an all-zero mask.
+    long long gradient_passes = 0, primal_passes = 0;     ///< Passes of each render of a kind.
+    double gradient_seconds_per_pass = 0.0;               ///< Wall time of one gradient pass (s).
+    double primal_seconds_per_pass = 0.0;                 ///< Wall time of one primal-only pass (s).
+};
+
+/// Where gradients pay, and the densities that give every pixel the same time.
+struct GradientSelection {
+    Image mask;            ///< RenderSettings::gradient_mask: 1 where gradients pay, 0 elsewhere.
+    Image density;         ///< RenderSettings::sample_density (mean 1): primal-only pixels take cost_ratio times as many.
+    double cost_ratio = 1.0;      ///< Seconds per gradient sample over seconds per primal-only sample (unitless).
+    double gradient_share = 1.0;  ///< Fraction of the pixels that take gradients (0..1).
+};
+
+/// Colour-gradient selection (Kettunen's thesis "Gradient-Domain Methods for
+/// Realistic Image Synthesis", 2020, section 4.3.2): per tile, whether the
+/// gradients' variance reduction per second beats the primal's. From a pilot
+/// of gradient samples (gpt: primal_variance vp, dx_variance, dy_variance vg,
+/// per sample) and one of primal-only samples (gpt with an all-zero mask:
+/// primal_variance vpt), with their seconds per pass tg and tpt: a tile keeps
+/// its gradients iff tg * vp * F(vg / vp) < tpt * vpt, where vp F(r) is the
+/// per-pixel variance of the generalised least-squares (inverse-variance
+/// weighted, L2) screened Poisson solution for white noise of per-sample
+/// variances vp and vg, F(r) = mean over the image's cosine frequencies of
+/// r / (r + lambda), lambda the eigenvalues of the discrete Laplacian.
+/// Correlations between the primal and the gradients and the L1 form are
+/// not modelled. Throws ParameterError naming a missing layer or a mismatch.
+GradientSelection select_gradient_pixels(const FrameBuffer& gradient_pilot, double gradient_seconds_per_pass,
+                                         const FrameBuffer& primal_pilot, double primal_seconds_per_pass,
+                                         const GradientSelectOptions& options = {});
+
+/// Criterion::Measured: a tile keeps its gradients iff
+/// tg ng V(R) < tp np V(P), where V is the tile's relative variance of a
+/// render (the mean over its pixels and channels of (a - b)^2 / 2 /
+/// (m^2 + 0.01), a and b the two pilots' values, m the mean of all four
+/// pilots' colour: relMSE's units), R the reconstruction (options.method) and
+/// P the primal-only colour, ng and np the passes behind each and tg, tp
+/// the seconds per pass: per-sample variance times the time per sample.
+/// Throws ParameterError naming a missing pilot, layer or bad option.
+GradientSelection select_gradient_pixels(const SelectionPilots& pilots, const GradientSelectOptions& options = {});
+
+/// F(r) of select_gradient_pixels(): the variance of a pixel of the weighted
+/// L2 solution over the primal's per-sample variance, for gradient over
+/// primal variance ratio r >= 0 (unitless, between 0 and 1, increasing).
+double gls_variance_factor(double r);
+
 /// How render_adaptive() spends its budget.
 struct AdaptiveRender {
+    /// What the pilot decides: each pixel's sample density by its variance
+    /// (adaptive_sample_density()), or which pixels take gradients and how
+    /// many primal-only samples the others take (select_gradient_pixels()).
+    enum class Mode { Density, SelectGradients };
+    Mode mode = Mode::Density;
     double pilot = 0.125;     ///< Share of the budget (samples or seconds) given to the pilot render (0..0.5).
-    AdaptiveOptions density;  ///< How the pilot becomes a density.
+    AdaptiveOptions density;  ///< How the pilot becomes a density (Mode::Density).
+    GradientSelectOptions select;  ///< How the pilots choose gradient pixels (Mode::SelectGradients).
     /// Also keep the pilot's samples, merged pixel by pixel into the result
     /// (as the publication does). Consistent but not unbiased: a pixel whose
     /// pilot was unlucky gets a density that depends on it. The result is
@@ -60,6 +133,16 @@ struct AdaptiveRender {
 /// "adaptive_pilot_spp" and "adaptive_pilot_seconds"; the statistics count
 /// both renders. A resumed render passes the stored density directly
 /// (RenderSettings::sample_density) instead.
+///
+/// Mode::SelectGradients (gpt only) renders pilots first: primal-only
+/// samples (an all-zero gradient mask; 4 passes, or the pilot's spp) and
+/// gradient samples (the rest of the pilot's share, at least 4 passes), each
+/// as two renders of independent seeds for Criterion::Measured; the
+/// render itself then has select_gradient_pixels()' mask and density
+/// (layers "gradient_mask" and "sample_density", metadata
+/// "gradient_share" and "gradient_cost_ratio"). With an spp budget the
+/// primal-only pilot's passes are extra. keep_pilot keeps the gradient
+/// pilot's samples (the primal-only pilot's are not kept).
 RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const RenderSettings& settings,
                             FrameBuffer& out, const AdaptiveRender& adaptive = {}, const ProgressFn& progress = {});
 

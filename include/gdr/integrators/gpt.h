@@ -70,6 +70,18 @@ struct GradientReconstructions {
     void add(FrameBuffer& fb, int64_t spp, const std::string& who) const;
 };
 
+/// For a render with a "gradient_mask" layer (RenderSettings::gradient_mask):
+/// sets every gradient layer (dx, dy, and combined shifts' dx_<shift>,
+/// dy_<shift>) on each edge with a primal-only pixel, which has no gradient
+/// estimate, to the difference of the two primal estimates (radiance), and
+/// its variance layer to the sum of theirs (per sample, the far pixel's
+/// scaled by the ratio of counts of the "spp" layer, if fb has one). A
+/// reconstruction that knows nothing of the mask (poisson-l1, poisson-l2)
+/// then gives back the primal where every edge is masked, as if those rows
+/// were absent; poisson-weighted reads the mask and weights those rows zero.
+/// Does nothing without a mask.
+void fill_masked_gradients(FrameBuffer& fb);
+
 /// Registers "gpt".
 void register_gpt(Registry<Integrator>& r);
 

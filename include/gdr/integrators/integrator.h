@@ -62,6 +62,15 @@ struct RenderSettings {
     /// by its own count, so it stays unbiased for any density fixed before the
     /// render (adaptive_sample_density() makes one from a pilot render).
     const Image* sample_density = nullptr;
+    /// Where an integrator with gradients (gpt) takes them (1 channel, the
+    /// camera's size, each value 0 or 1), or nullptr for everywhere: a pixel
+    /// of value 0 takes primal-only samples (no shifted paths, a path
+    /// tracer's cost), and the pair of neighbours across each of its edges is
+    /// treated like the image border (its gradient is not estimated, the base
+    /// path estimates its own pixel alone), so every pixel stays unbiased.
+    /// Integrators without gradients refuse it. Thesis section 4.3.2;
+    /// select_gradient_pixels() makes one from pilot renders.
+    const Image* gradient_mask = nullptr;
 };
 
 /// Largest relative sample density a pixel may ask for (RenderSettings::sample_density).

@@ -218,11 +218,20 @@ protected:
     }
     /// True while the render under way samples adaptively.
     bool adaptive() const { return density_ != nullptr; }
+    /// True if the integrator honours RenderSettings::gradient_mask; render()
+    /// refuses a mask otherwise.
+    virtual bool takes_gradient_mask() const { return false; }
+    /// Whether pixel (x, y) takes gradient samples in the render under way
+    /// (RenderSettings::gradient_mask; true everywhere without one).
+    bool gradients_at(int x, int y) const { return !mask_ || mask_->at(x, y, 0) != 0.f; }
+    /// True while the render under way has a gradient mask.
+    bool masked() const { return mask_ != nullptr; }
 
 private:
     struct Buffers;
     std::unique_ptr<Buffers> buffers_;
     const Image* density_ = nullptr;  // RenderSettings::sample_density of the render under way
+    const Image* mask_ = nullptr;     // RenderSettings::gradient_mask of the render under way
     // Set while render() runs: a second, concurrent render() of the same
     // object would share the accumulators, so it is refused instead.
     std::atomic<bool> rendering_{false};
