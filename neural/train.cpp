@@ -33,7 +33,7 @@ namespace {
 
 const char* kUsage = R"(usage:
   gdr_train data --out DIR --scenes A.json[,B.json...] [--crops 16] [--size 64]
-                 [--spp 4,16,64] [--target-spp 1024] [--seed 1] [--threads 0]
+                 [--spp 4,16,64] [--target-spp 1024] [--seed 1] [--threads 0] [--vary]
       Renders random views (gpt) into DIR/crop-NNNNN.exr; existing views are kept,
       so a stopped run continues.
   gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
@@ -126,7 +126,7 @@ struct Options {
 
 int data(int argc, char** argv) {
     const Options o(argc, argv, {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads"},
-                    {});
+                    {"--vary"});
     DatasetOptions d;
     d.scenes = split(o.need("--scenes"));
     d.crops = int(o.num("--crops", d.crops));
@@ -135,6 +135,7 @@ int data(int argc, char** argv) {
     d.target_spp = int(o.num("--target-spp", d.target_spp));
     d.seed = uint64_t(o.num("--seed", 1));
     d.threads = int(o.num("--threads", 0));
+    d.vary = o.flag("--vary");
     const auto t0 = std::chrono::steady_clock::now();
     generate_dataset(d, o.need("--out"), [&](int done, int total) {
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

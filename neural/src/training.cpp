@@ -16,6 +16,7 @@
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/scene_file.h"
+#include "gdr/scene/bsdf.h"
 
 namespace gdr::neural {
 namespace {
@@ -70,6 +71,59 @@ CameraDesc random_view(const CameraDesc& base, int size, std::mt19937_64& rng) {
     return d;
 }
 
+/// A BSDF whose every value is another's times a fixed colour (each channel
+/// in [0, 1]): the same lobes and densities, so every integrator and shift
+/// treats it as the original, only the reflectance is recoloured.
+class TintedBsdf final : public Bsdf {
+public:
+    TintedBsdf(std::shared_ptr<Bsdf> inner, const Color& tint) : inner_(std::move(inner)), tint_(tint) {}
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float u_lobe, const Vec2& u) const override {
+        auto s = inner_->sample(wo, uv, u_lobe, u);
+        if (s) s->f *= tint_;
+        return s;
+    }
+    Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override { return tint_ * inner_->eval(wo, wi, uv); }
+    float pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override { return inner_->pdf(wo, wi, uv); }
+    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        BsdfEval e = inner_->eval_pdf(wo, wi, uv);
+        e.f *= tint_;
+        return e;
+    }
+    std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        auto s = inner_->eval_delta(wo, wi, uv);
+        if (s) s->f *= tint_;
+        return s;
+    }
+    uint32_t flags() const override { return inner_->flags(); }
+    Color albedo(const Vec2& uv) const override { return tint_ * inner_->albedo(uv); }
+    float min_roughness() const override { return inner_->min_roughness(); }
+    float eta() const override { return inner_->eta(); }
+    bool wo_side_only() const override { return inner_->wo_side_only(); }
+    bool is_black() const override { return inner_->is_black(); }
+
+private:
+    std::shared_ptr<Bsdf> inner_;
+    Color tint_;
+};
+
+/// DatasetOptions::vary: the scene's geometry with recoloured materials and
+/// rescaled emitters, seen by `camera`.
+std::unique_ptr<Scene> varied_scene(const Scene& scene, const std::string& origin, const Camera& camera,
+                                    std::mt19937_64& rng) {
+    std::uniform_real_distribution<float> tint(0.45f, 1.f), light(0.6f, 1.f), scale(std::log(1.f / 3.f), std::log(3.f));
+    std::vector<Material> mats = scene.materials();
+    for (Material& m : mats) {
+        const Color t(tint(rng), tint(rng), tint(rng));
+        if (!m.bsdf->is_black()) m.bsdf = std::make_shared<TintedBsdf>(m.bsdf, t);
+        if (!is_black(m.emission)) {
+            Color c(light(rng), light(rng), light(rng));
+            c /= std::max({c.r, c.g, c.b});
+            m.emission *= c * std::exp(scale(rng));
+        }
+    }
+    return std::make_unique<Scene>(scene.mesh(), std::move(mats), camera, origin + " (varied)");
+}
+
 }  // namespace
 
 void generate_dataset(const DatasetOptions& o, const std::string& dir, const std::function<void(int, int)>& progress) {
@@ -93,9 +147,19 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
             scenes[si] = load_scene_file(o.scenes[si]);
             cameras[si] = scenes[si].scene->camera().desc();
         }
-        Scene& scene = *scenes[si].scene;
+        Scene& base = *scenes[si].scene;
         std::mt19937_64 rng(mix(o.seed, uint64_t(i)));
-        scene.set_camera(Camera(random_view(cameras[si], o.size, rng)));
+        const Camera camera(random_view(cameras[si], o.size, rng));
+        std::unique_ptr<Scene> varied;
+        const bool vary = o.vary && i % 2 == 1;
+        if (vary) {
+            std::mt19937_64 vary_rng(mix(mix(o.seed, uint64_t(i)), 0x76617279ull));  // "vary"
+            varied = varied_scene(base, o.scenes[si], camera, vary_rng);
+            if (base.environment()) varied->set_environment(base.shared_environment());
+        } else {
+            base.set_camera(camera);
+        }
+        Scene& scene = varied ? *varied : base;
         RenderSettings st;
         st.threads = o.threads;
         FrameBuffer out(o.size, o.size), fb;
@@ -110,6 +174,7 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
             levels += (levels.empty() ? "" : ",") + std::to_string(s);
         }
         out.metadata()["scene"] = o.scenes[si];
+        if (vary) out.metadata()["varied"] = "true";
         out.metadata()["spp"] = levels;
         out.metadata()["target_spp"] = std::to_string(o.target_spp);
         // Written aside and renamed: an interrupted view leaves no file that looks finished.

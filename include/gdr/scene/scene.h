@@ -223,6 +223,8 @@ public:
     void set_environment(std::shared_ptr<const Environment> env);
     /// The environment emitter, or nullptr.
     const Environment* environment() const { return env_.get(); }
+    /// The environment emitter as set_environment() took it, to install in another scene; or nullptr.
+    std::shared_ptr<const Environment> shared_environment() const { return env_; }
     /// Probability (unitless) with which sample_light() picks the environment:
     /// its estimated power over the scene's total. An environment's power is
     /// taken as that crossing the scene's bounding disk, pi r^2 times the

@@ -45,6 +45,12 @@ struct DatasetOptions {
     int target_spp = 1024;            ///< Sample count of each view's target.
     uint64_t seed = 1;                ///< Seed of the views and of the renders.
     int threads = 0;                  ///< Render threads (0 = all cores).
+    /// Procedural variation: every odd-numbered view also recolours the
+    /// scene's materials (every reflectance times a random tint, each channel
+    /// in [0.45, 1]) and rescales its emitters (a random tint and a factor of
+    /// 1/3 to 3), from a stream of its own, so its camera is the unvaried
+    /// view's; even-numbered views show the scenes as they are.
+    bool vary = false;
 };
 
 /// Renders the data set into `dir`, one file crop-NNNNN.exr per view (layers
