@@ -255,7 +255,7 @@ TEST_CASE("the shipped model loads and reconstructs odd-sized frames to finite i
     Registry<Reconstructor> reg("reconstructor");
     register_neural_reconstructor(reg);
     Params p("test");
-    p.set("weights", std::string(GDR_SOURCE_DIR) + "/neural/models/unet-v0.pt");
+    p.set("weights", std::string(GDR_SOURCE_DIR) + "/neural/models/unet-v1.pt");
     p.set("threads", 1LL);
     const auto rec = reg.create("neural", p);
     REQUIRE_THAT(rec->describe(), Catch::Contains("widths=16,32,48,64") && Catch::Contains("gradients=true"));
