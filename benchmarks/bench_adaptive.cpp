@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gdr/cli/commands.h"
@@ -58,6 +59,13 @@ struct Options {
     GradientSelectOptions select;  // --select key=value
 };
 
+// The key and value of option `opt`'s argument "key=value".
+std::pair<std::string, std::string> key_value(const std::string& opt, const std::string& kv) {
+    const size_t eq = kv.find('=');
+    if (eq == std::string::npos) throw ParameterError("bench_adaptive: " + opt + " takes key=value, got '" + kv + "'");
+    return {kv.substr(0, eq), kv.substr(eq + 1)};
+}
+
 Options parse(int argc, char** argv) {
     Options o;
     cli::ArgReader a{std::vector<std::string>(argv + 1, argv + argc)};
@@ -82,10 +90,7 @@ Options parse(int argc, char** argv) {
         else if (opt == "--cache") o.cache = a.value(opt);
         else if (opt == "--density") {
             // key=value: uniform, max, epsilon, median (radius), source (auto, gradients, primal).
-            const std::string kv = a.value(opt);
-            const size_t eq = kv.find('=');
-            if (eq == std::string::npos) throw ParameterError("bench_adaptive: --density takes key=value, got '" + kv + "'");
-            const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
+            const auto [k, v] = key_value(opt, a.value(opt));
             if (k == "uniform") o.density.uniform = std::stod(v);
             else if (k == "max") o.density.max_density = std::stod(v);
             else if (k == "epsilon") o.density.epsilon = std::stod(v);
@@ -98,16 +103,13 @@ Options parse(int argc, char** argv) {
         }
         else if (opt == "--select") {
             // key=value: criterion (model, measured), tile, max.
-            const std::string kv = a.value(opt);
-            const size_t eq = kv.find('=');
-            if (eq == std::string::npos) throw ParameterError("bench_adaptive: --select takes key=value, got '" + kv + "'");
-            const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
+            const auto [k, v] = key_value(opt, a.value(opt));
             if (k == "criterion" && (v == "model" || v == "measured"))
                 o.select.criterion = v == "model" ? GradientSelectOptions::Criterion::Model
                                                   : GradientSelectOptions::Criterion::Measured;
             else if (k == "tile") o.select.tile = std::stoi(v);
             else if (k == "max") o.select.max_density = std::stod(v);
-            else throw ParameterError("bench_adaptive: bad --select '" + kv + "'");
+            else throw ParameterError("bench_adaptive: bad --select '" + k + "=" + v + "'");
         }
         else if (opt == "--threads") o.threads = int(a.int_value(opt, 0, 1024));
         else if (opt == "-h" || opt == "--help") {

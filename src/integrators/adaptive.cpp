@@ -315,6 +315,11 @@ uint64_t pilot_seed(uint64_t seed) { return mix64(seed ^ 0x70696c6f74ull); }  //
 
 namespace {
 
+// Adds r's samples, rays and non-finite samples (not its spp or seconds) to `into`.
+void add_work(RenderStats& into, const RenderStats& r) {
+    into.samples += r.samples, into.rays += r.rays, into.nonfinite += r.nonfinite;
+}
+
 // A pilot render of `st` (its seed, spp and sample 0 already set): with a
 // time budget > 0 in `seconds`, at least st.spp passes and then whole
 // passes until `seconds` are spent (or the render is cancelled).
@@ -332,11 +337,70 @@ RenderStats run_pilot(Integrator& integrator, const Scene& scene, const RenderSe
             FrameBuffer rest;
             const RenderStats ms = integrator.render(scene, more, rest, progress);
             merge_renders(fb, rest);
-            ps.spp += ms.spp, ps.samples += ms.samples, ps.rays += ms.rays, ps.nonfinite += ms.nonfinite;
+            ps.spp += ms.spp;
+            add_work(ps, ms);
         }
     }
     ps.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return ps;
+}
+
+// The pilots of AdaptiveRender::Mode::SelectGradients for `pilot` (seed,
+// spp and sample 0 set) and their choice: primal-only renders first (an
+// integrator without gradients refuses the mask before any time is spent),
+// then gradient renders, the first of which spends what is left of `seconds`
+// (> 0 with a time budget); two of each kind for Criterion::Measured. `kept`
+// receives the gradient pilots (merged) and `ps` their passes and every
+// pilot's work.
+GradientSelection selection_pilots(Integrator& integrator, const Scene& scene, const RenderSettings& pilot,
+                                   double seconds, const GradientSelectOptions& o, FrameBuffer& kept, RenderStats& ps,
+                                   const ProgressFn& progress) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const bool measured = o.criterion == GradientSelectOptions::Criterion::Measured;
+    const int halves = measured ? 2 : 1;  // independent renders of each kind
+    const Image none(scene.camera().width(), scene.camera().height(), 1);
+    RenderSettings primal = pilot;
+    primal.gradient_mask = &none;
+    if (measured) primal.spp = std::max(1LL, primal.spp / 2);
+    FrameBuffer primal_fb[2], gradient_fb[2];
+    double primal_seconds = 0.0;
+    for (int i = 0; i < halves; ++i) {
+        primal.seed = mix64(pilot.seed ^ (0x7072696d616cull + uint64_t(i)));  // "primal"
+        const RenderStats pp = integrator.render(scene, primal, primal_fb[i], progress);
+        primal_seconds += pp.seconds;
+        add_work(ps, pp);
+    }
+    const double primal_per_pass = primal_seconds / double(halves * primal.spp);
+    // The gradient pilots: the first takes its share of the time, the second as many passes.
+    RenderSettings gradient = pilot;
+    if (measured) gradient.spp = std::max(1LL, gradient.spp / 2);
+    const double left = seconds - std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const RenderStats g0 =
+        run_pilot(integrator, scene, gradient, seconds > 0.0 ? std::max(0.0, left / halves) : 0.0, gradient_fb[0], progress);
+    ps.spp += g0.spp;
+    add_work(ps, g0);
+    GradientSelection selection;
+    if (measured) {
+        gradient.seed = mix64(pilot.seed ^ 0x6772616469656e74ull);  // "gradient"
+        gradient.spp = g0.spp;
+        const RenderStats g1 = integrator.render(scene, gradient, gradient_fb[1], progress);
+        ps.spp += g1.spp;
+        add_work(ps, g1);
+        SelectionPilots pilots;
+        pilots.gradient[0] = &gradient_fb[0], pilots.gradient[1] = &gradient_fb[1];
+        pilots.primal[0] = &primal_fb[0], pilots.primal[1] = &primal_fb[1];
+        pilots.gradient_passes = g0.spp, pilots.primal_passes = primal.spp;
+        pilots.gradient_seconds_per_pass = (g0.seconds + g1.seconds) / double(2 * g0.spp);
+        pilots.primal_seconds_per_pass = primal_per_pass;
+        selection = select_gradient_pixels(pilots, o);
+        kept = std::move(gradient_fb[0]);
+        merge_renders(kept, gradient_fb[1]);  // kept, if it is, as one pilot
+    } else {
+        selection = select_gradient_pixels(gradient_fb[0], g0.seconds / double(std::max(1LL, g0.spp)), primal_fb[0],
+                                           primal_per_pass, o);
+        kept = std::move(gradient_fb[0]);
+    }
+    return selection;
 }
 
 }  // namespace
@@ -368,7 +432,6 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
         pilot.time_budget = 0.0;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const auto since = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     const double share = timed ? ad.pilot : double(pilot_spp) / double(st.spp);
     const ProgressFn pilot_progress = progress ? ProgressFn([&](const Progress& p) {
         Progress q = p;
@@ -376,64 +439,20 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
         progress(q);
     }) : ProgressFn();
 
+    const double pilot_budget = timed ? ad.pilot * st.time_budget : 0.0;  // seconds; 0: the pilot's spp
     RenderStats ps;
     FrameBuffer pilot_fb;
     Image density;
     GradientSelection selection;
     if (select) {
-        const bool measured = ad.select.criterion == GradientSelectOptions::Criterion::Measured;
-        const int halves = measured ? 2 : 1;  // independent renders of each kind
-        const auto per_pass = [](const RenderStats& r) { return r.seconds / double(std::max(1LL, r.spp)); };
-        // Primal-only samples first: an integrator without gradients refuses
-        // the mask before any time is spent.
-        const Image none(scene.camera().width(), scene.camera().height(), 1);
-        RenderSettings primal = pilot;
-        primal.gradient_mask = &none;
-        if (measured) primal.spp = std::max(1LL, primal.spp / 2);
-        FrameBuffer primal_fb[2], gradient_fb[2];
-        double primal_seconds = 0.0;
-        for (int i = 0; i < halves; ++i) {
-            primal.seed = mix64(pilot.seed ^ (0x7072696d616cull + uint64_t(i)));  // "primal"
-            const RenderStats pp = integrator.render(scene, primal, primal_fb[i], pilot_progress);
-            primal_seconds += pp.seconds;
-            ps.samples += pp.samples, ps.rays += pp.rays, ps.nonfinite += pp.nonfinite;
-        }
-        const double primal_per_pass = primal_seconds / double(halves * primal.spp);
-        // The gradient pilots: the first takes its share of the time, the second as many passes.
-        RenderSettings gradient = pilot;
-        if (measured) gradient.spp = std::max(1LL, gradient.spp / 2);
-        const double left = timed ? ad.pilot * st.time_budget - since() : 0.0;
-        RenderStats g0 = run_pilot(integrator, scene, gradient, timed ? std::max(0.0, left / halves) : 0.0,
-                                   gradient_fb[0], pilot_progress);
-        double gradient_seconds = g0.seconds;
-        long long gradient_passes = g0.spp;
-        ps.spp += g0.spp, ps.samples += g0.samples, ps.rays += g0.rays, ps.nonfinite += g0.nonfinite;
-        if (measured) {
-            gradient.seed = mix64(pilot.seed ^ 0x6772616469656e74ull);  // "gradient"
-            gradient.spp = g0.spp;
-            const RenderStats g1 = integrator.render(scene, gradient, gradient_fb[1], pilot_progress);
-            gradient_seconds += g1.seconds;
-            ps.spp += g1.spp, ps.samples += g1.samples, ps.rays += g1.rays, ps.nonfinite += g1.nonfinite;
-            SelectionPilots pilots;
-            pilots.gradient[0] = &gradient_fb[0], pilots.gradient[1] = &gradient_fb[1];
-            pilots.primal[0] = &primal_fb[0], pilots.primal[1] = &primal_fb[1];
-            pilots.gradient_passes = gradient_passes, pilots.primal_passes = primal.spp;
-            pilots.gradient_seconds_per_pass = gradient_seconds / double(2 * gradient_passes);
-            pilots.primal_seconds_per_pass = primal_per_pass;
-            selection = select_gradient_pixels(pilots, ad.select);
-            pilot_fb = std::move(gradient_fb[0]);
-            merge_renders(pilot_fb, gradient_fb[1]);  // kept, if it is, as one pilot
-        } else {
-            selection = select_gradient_pixels(gradient_fb[0], per_pass(g0), primal_fb[0], primal_per_pass, ad.select);
-            pilot_fb = std::move(gradient_fb[0]);
-        }
+        selection = selection_pilots(integrator, scene, pilot, pilot_budget, ad.select, pilot_fb, ps, pilot_progress);
         density = std::move(selection.density);
     } else {
-        ps = run_pilot(integrator, scene, pilot, timed ? ad.pilot * st.time_budget : 0.0, pilot_fb, pilot_progress);
+        ps = run_pilot(integrator, scene, pilot, pilot_budget, pilot_fb, pilot_progress);
         density = adaptive_sample_density(pilot_fb, ad.density);
     }
     if (!ad.keep_pilot) pilot_fb = FrameBuffer();
-    const double pilot_seconds = since();
+    const double pilot_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
     RenderSettings main = st;
     main.sample_density = &density;
@@ -464,9 +483,7 @@ RenderStats render_adaptive(Integrator& integrator, const Scene& scene, const Re
     out.metadata()["adaptive_pilot_spp"] = std::to_string(ps.spp);
     out.metadata()["adaptive_pilot_seconds"] = fmt::format("{:.3f}", pilot_seconds);
     rs.seconds += pilot_seconds;
-    rs.samples += ps.samples;
-    rs.rays += ps.rays;
-    rs.nonfinite += ps.nonfinite;
+    add_work(rs, ps);
     return rs;
 }
 
