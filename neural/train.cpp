@@ -37,18 +37,23 @@ const char* kUsage = R"(usage:
       Renders random views (gpt) into DIR/crop-NNNNN.exr; existing views are kept,
       so a stopped run continues.
   gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
-                  [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only]
-                  [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
+                  [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only | --poisson]
+                  [--augment] [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
       Trains up to N steps in all, resuming from CKPT if it exists; writes CKPT
       every --every steps, CKPT.csv (step,loss[,validation loss]) and OUT.
+      --poisson: the network also reads the poisson-l1 reconstruction and
+      corrects it; --augment: random mirror images, transposes and colour
+      permutations of the samples.
   gdr_train validate --data DIR --weights W [--threads 2]
-      relMSE (eps 0.01, per channel) of the noisy primal, poisson-l1 and the
+      relMSE (eps 0.01, per channel) of the noisy primal, poisson-l2, poisson-l1 and the
       network against the targets, per sample count.
   gdr_train reconstruct IN.exr --weights W -o OUT.exr [--threads 2]
       The neural reconstruction (plus direct emitters) of a gpt render, as the
       layer "color" of OUT.exr.
-  gdr_train time [--widths 16,32,48,64] [--size 1280x720] [--threads 2] [--repeat 3]
-      Seconds per inference of an untrained network of that shape on random input.
+  gdr_train time [--widths 16,32,48,64] [--primal-only | --poisson] [--size 1280x720]
+                 [--threads 2] [--repeat 3]
+      Seconds per forward pass of an untrained network of that shape on random
+      input (without --poisson's poisson-l1 solve; bench_reconstruct times it all).
   gdr_train plot --losses CKPT.csv -o CURVE.png [--window 50] [--title TEXT]
       The training curve of a run (the csv train writes): the loss of every step,
       its mean over the last --window steps and the validation loss (log scale).
@@ -149,6 +154,8 @@ UNetConfig config_of(const Options& o) {
     UNetConfig c;
     if (!o.get("--widths").empty()) c.widths = split_ints(o.get("--widths"), "--widths");
     c.gradients = !o.flag("--primal-only");
+    c.poisson = o.flag("--poisson");
+    if (c.poisson && !c.gradients) throw ParameterError("gdr_train: --poisson and --primal-only exclude each other");
     return c;
 }
 
@@ -156,9 +163,10 @@ int train(int argc, char** argv) {
     const Options o(argc, argv,
                     {"--data", "--checkpoint", "--steps", "--batch", "--lr", "--warmup", "--seed", "--widths", "--threads",
                      "--every", "--weights", "--validation"},
-                    {"--primal-only"});
+                    {"--primal-only", "--poisson", "--augment"});
     TrainOptions t;
     t.config = config_of(o);
+    t.augment = o.flag("--augment");
     t.batch = int(o.num("--batch", t.batch));
     t.learning_rate = o.real("--lr", t.learning_rate);
     t.warmup = int(o.num("--warmup", t.warmup));
@@ -235,7 +243,7 @@ int validate(int argc, char** argv) {
     if (files.empty()) throw InputError("validate: no crop-*.exr in " + dir);
     // Per view and sample count; the mean is dominated by a few views with
     // fireflies, so the median is printed too.
-    struct Values { std::vector<double> noisy, l1, net; };
+    struct Values { std::vector<double> noisy, l2, l1, net; };
     std::map<int, Values> by_spp;
     for (const auto& f : files) {
         const FrameBuffer fb = read_exr(f);
@@ -247,6 +255,7 @@ int validate(int argc, char** argv) {
             const Image& target = fb.get("target");
             Values& v = by_spp[s];
             v.noisy.push_back(relmse(frame.get("primal"), target));
+            v.l2.push_back(relmse(reconstruct("poisson-l2", Params("validate"), gb), target));
             v.l1.push_back(relmse(reconstruct("poisson-l1", Params("validate"), gb), target));
             v.net.push_back(relmse(infer(net, gb), target));
         }
@@ -261,11 +270,12 @@ int validate(int argc, char** argv) {
         return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
     };
     fmt::print("relMSE (eps 0.01, per channel) over {} views of {}: mean | median over views\n", files.size(), dir);
-    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>16}\n", "spp", "noisy", "poisson-l1", "neural", "neural/l1");
+    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>21} {:>16}\n", "spp", "noisy", "poisson-l2", "poisson-l1", "neural",
+               "neural/l1");
     for (const auto& [s, v] : by_spp)
-        fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>7.3f} {:>8.3f}\n", s, mean(v.noisy),
-                   median(v.noisy), mean(v.l1), median(v.l1), mean(v.net), median(v.net), mean(v.net) / mean(v.l1),
-                   median(v.net) / median(v.l1));
+        fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>7.3f} {:>8.3f}\n",
+                   s, mean(v.noisy), median(v.noisy), mean(v.l2), median(v.l2), mean(v.l1), median(v.l1), mean(v.net),
+                   median(v.net), mean(v.net) / mean(v.l1), median(v.net) / median(v.l1));
     return 0;
 }
 
@@ -309,7 +319,7 @@ int reconstruct_file(int argc, char** argv) {
 }
 
 int time_inference(int argc, char** argv) {
-    const Options o(argc, argv, {"--widths", "--size", "--threads", "--repeat"}, {"--primal-only"});
+    const Options o(argc, argv, {"--widths", "--size", "--threads", "--repeat"}, {"--primal-only", "--poisson"});
     const UNetConfig c = config_of(o);
     int W = 1280, H = 720;
     if (const std::string s = o.get("--size"); !s.empty() && std::sscanf(s.c_str(), "%dx%d", &W, &H) != 2)

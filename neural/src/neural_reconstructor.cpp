@@ -28,7 +28,7 @@ public:
     std::string describe() const override {
         std::ostringstream os;
         os << "gradients=" << ((*net_)->config().gradients ? "true" : "false") << "\nthreads=" << threads_
-           << "\nweights=" << weights_ << "\nwidths=";
+           << "\npoisson=" << ((*net_)->config().poisson ? "true" : "false") << "\nweights=" << weights_ << "\nwidths=";
         for (size_t i = 0; i < (*net_)->config().widths.size(); ++i) os << (i ? "," : "") << (*net_)->config().widths[i];
         os << "\n";
         return os.str();

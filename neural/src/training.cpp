@@ -39,6 +39,13 @@ torch::Tensor read_tensor(torch::serialize::InputArchive& ar, const std::string&
     return v.toTensor();
 }
 
+/// An integer entry that older files may lack (then 0).
+torch::Tensor read_optional(torch::serialize::InputArchive& ar, const std::string& key) {
+    std::vector<std::string> keys = ar.keys();
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) return torch::tensor(int64_t(0));
+    return read_tensor(ar, key);
+}
+
 const char* const kFrameLayers[] = {"primal", "dx", "dy", "albedo", "normal", "depth"};
 
 torch::Tensor planar(const Image& img, int channels) {
@@ -255,6 +262,53 @@ torch::Tensor predict(UNet& net, const Sample& s) {
     return decode_colour(y)[0];
 }
 
+Sample augment(const Sample& s, const UNetConfig& config, const Augmentation& a) {
+    const InputLayout l = input_layout(config);
+    const int H = int(s.target.size(1)), W = int(s.target.size(2));
+    const int Hp = int(s.input.size(1)), Wp = int(s.input.size(2));
+    if (a.transpose && (H != W || Hp != Wp)) throw ParameterError("augmentation: only a square sample can be transposed");
+    if ((a.flip_x && Wp - W != 2 * kMargin) || (a.flip_y && Hp - H != 2 * kMargin))
+        throw ParameterError("augmentation: a flipped axis needs equal padding on both sides (size + " +
+                             std::to_string(2 * kMargin) + " a multiple of the network's stride)");
+    if (a.permutation < 0 || a.permutation > 5) throw ParameterError("augmentation: permutation must be in 0..5");
+    constexpr int kPerm[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+    const int* perm = kPerm[a.permutation];
+    // Channel c of the result comes from channel from[c] of the input.
+    std::vector<int64_t> from(size_t(s.input.size(0)));
+    for (size_t c = 0; c < from.size(); ++c) from[c] = int64_t(c);
+    const auto triple = [&](int first) {
+        if (first >= 0)
+            for (int j = 0; j < 3; ++j) from[size_t(first + j)] = first + perm[j];
+    };
+    triple(l.poisson), triple(l.primal), triple(l.albedo);
+    if (l.dx >= 0)
+        for (int j = 0; j < 3; ++j) {
+            // A transpose turns dy into dx and dx into dy.
+            from[size_t(l.dx + j)] = (a.transpose ? l.dy : l.dx) + perm[j];
+            from[size_t(l.dy + j)] = (a.transpose ? l.dx : l.dy) + perm[j];
+        }
+    const torch::Tensor index = torch::tensor(from);
+    torch::Tensor x = s.input.index_select(0, index);
+    torch::Tensor t = s.target.index_select(0, torch::tensor(std::vector<int64_t>{perm[0], perm[1], perm[2]}));
+    if (a.transpose) x = x.transpose(1, 2), t = t.transpose(1, 2);
+    // dx(x) = I(x+1) - I(x): mirrored, the difference at x' = W-1-x belongs
+    // to the pair (x'-1, x'), so it is negated and moves one pixel left; the
+    // value rolled in at the far end is the padding's zero.
+    const auto mirror = [&](int dim, int gradient) {
+        x = x.flip({dim});
+        if (gradient >= 0) {
+            using torch::indexing::Slice;
+            const torch::Tensor g = -x.slice(0, gradient, gradient + 3).roll({-1}, {dim});
+            x = x.clone();
+            x.slice(0, gradient, gradient + 3).copy_(g);
+        }
+        t = t.flip({dim});
+    };
+    if (a.flip_x) mirror(2, l.dx);
+    if (a.flip_y) mirror(1, l.dy);
+    return Sample{x.contiguous(), t.contiguous(), s.spp};
+}
+
 Trainer::Trainer(const TrainOptions& options, std::vector<Sample> samples)
     : options_(options), samples_(std::move(samples)) {
     if (samples_.empty()) throw ParameterError("training: no samples");
@@ -275,7 +329,17 @@ double Trainer::step() {
     std::vector<torch::Tensor> xs, ts;
     for (int b = 0; b < options_.batch; ++b) {
         const Sample& s = samples_[pick(rng)];
-        xs.push_back(s.input), ts.push_back(s.target);
+        if (options_.augment) {
+            Augmentation a;
+            const bool square = s.target.size(1) == s.target.size(2);
+            a.transpose = square && (rng() & 1);
+            a.flip_x = rng() & 1, a.flip_y = rng() & 1;
+            a.permutation = int(rng() % 6);
+            const Sample v = augment(s, options_.config, a);
+            xs.push_back(v.input), ts.push_back(v.target);
+        } else {
+            xs.push_back(s.input), ts.push_back(s.target);
+        }
     }
     const torch::Tensor x = torch::stack(xs), t = torch::stack(ts);
     const double lr = options_.learning_rate * std::min(1.0, double(step_ + 1) / std::max(1, options_.warmup));
@@ -319,6 +383,8 @@ void Trainer::save_checkpoint(const std::string& path) {
     ar.write("option_warmup", torch::tensor(int64_t(options_.warmup)));
     ar.write("option_relmse_weight", torch::tensor(options_.relmse_weight, torch::kFloat64));
     ar.write("option_seed", torch::tensor(int64_t(options_.seed)));
+    ar.write("option_poisson", torch::tensor(int64_t(options_.config.poisson)));
+    ar.write("option_augment", torch::tensor(int64_t(options_.augment)));
     const std::string tmp = path + ".partial";
     ar.save_to(tmp);
     fs::rename(tmp, path);
@@ -327,7 +393,7 @@ void Trainer::save_checkpoint(const std::string& path) {
 void Trainer::load_checkpoint(const std::string& path) {
     if (!fs::is_regular_file(path)) throw InputError("checkpoint " + path + " does not exist");
     torch::serialize::InputArchive ar, net_ar, opt_ar;
-    torch::Tensor step, losses, widths, gradients, batch, lr, warmup, relw, seed;
+    torch::Tensor step, losses, widths, gradients, batch, lr, warmup, relw, seed, poisson, augment;
     try {
         ar.load_from(path);
         step = read_tensor(ar, "step");
@@ -339,6 +405,9 @@ void Trainer::load_checkpoint(const std::string& path) {
         warmup = read_tensor(ar, "option_warmup");
         relw = read_tensor(ar, "option_relmse_weight");
         seed = read_tensor(ar, "option_seed");
+        // Added later: a checkpoint without them was made with both off.
+        poisson = read_optional(ar, "option_poisson");
+        augment = read_optional(ar, "option_augment");
     } catch (const std::exception& e) {
         const std::string what = e.what();
         throw InputError("checkpoint " + path + " is not a gdr_train checkpoint or is corrupt: " +
@@ -359,6 +428,8 @@ void Trainer::load_checkpoint(const std::string& path) {
     differs("warmup", std::to_string(warmup.item<int64_t>()), std::to_string(options_.warmup));
     differs("relmse_weight", fmt::format("{}", relw.item<double>()), fmt::format("{}", options_.relmse_weight));
     differs("seed", std::to_string(uint64_t(seed.item<int64_t>())), std::to_string(options_.seed));
+    differs("poisson", std::to_string(poisson.item<int64_t>()), std::to_string(int(options_.config.poisson)));
+    differs("augment", std::to_string(augment.item<int64_t>()), std::to_string(int(options_.augment)));
     try {
         ar.read("net", net_ar);
         ar.read("optimizer", opt_ar);

@@ -24,8 +24,10 @@ nn::Conv2d conv(int in, int out, int kernel, int stride = 1) {
 
 torch::Tensor act(const torch::Tensor& x) { return torch::leaky_relu(x, 0.01); }
 
-// The format tag of a weights file; bumped if the layout of the layers changes.
-constexpr int64_t kFormat = 1;
+// The format tag of a weights file; bumped if the layout of the layers
+// changes. Format 2 added the Poisson input (gdr_unet_poisson); format 1
+// files are networks without it and are still read.
+constexpr int64_t kFormat = 2;
 
 /// A tensor entry of an archive. (InputArchive::read into a Tensor calls
 /// .device() on its argument, which fails on an undefined tensor.)
@@ -39,7 +41,22 @@ std::string first_line(const std::string& s) { return s.substr(0, s.find('\n'));
 
 }  // namespace
 
-int input_channels(const UNetConfig& config) { return config.gradients ? 16 : 10; }
+int input_channels(const UNetConfig& config) {
+    if (config.poisson && !config.gradients)
+        throw ParameterError("U-Net: the Poisson input needs the gradient inputs (poisson without gradients)");
+    return config.poisson ? 19 : config.gradients ? 16 : 10;
+}
+
+InputLayout input_layout(const UNetConfig& config) {
+    input_channels(config);  // validates
+    InputLayout l;
+    int c = 0;
+    if (config.poisson) l.poisson = c, c += 3;
+    l.primal = c, c += 3;
+    if (config.gradients) l.dx = c, l.dy = c + 3, c += 6;
+    l.albedo = c, l.normal = c + 3, l.depth = c + 6;
+    return l;
+}
 
 UNetImpl::UNetImpl(const UNetConfig& config) : config_(config) {
     const auto& w = config_.widths;
@@ -117,7 +134,17 @@ torch::Tensor make_input(const GradientBuffers& in, const UNetConfig& config) {
         Kind kind;
         const char* name;
     };
-    std::vector<Source> sources{{in.primal, 3, Kind::colour, "primal"}};
+    std::vector<Source> sources;
+    Image poisson;
+    if (config.poisson) {
+        // Without `direct`: the network works on the primal's radiance and
+        // infer()'s caller adds the directly visible emitters afterwards.
+        GradientBuffers solve_in = in;
+        solve_in.direct = nullptr;
+        poisson = reconstruct("poisson-l1", Params("neural input"), solve_in);
+        sources.push_back({&poisson, 3, Kind::colour, "poisson-l1 reconstruction"});
+    }
+    sources.push_back({in.primal, 3, Kind::colour, "primal"});
     if (config.gradients) sources.push_back({in.dx, 3, Kind::dx, "dx"}), sources.push_back({in.dy, 3, Kind::dy, "dy"});
     sources.push_back({in.layer("albedo"), 3, Kind::albedo, "albedo"});
     sources.push_back({in.layer("normal"), 3, Kind::normal, "normal"});
@@ -187,6 +214,7 @@ void save_weights(UNet& net, const std::string& path) {
     ar.write("gdr_unet_format", torch::tensor(int64_t(kFormat)));
     ar.write("gdr_unet_widths", torch::tensor(widths));
     ar.write("gdr_unet_gradients", torch::tensor(int64_t(net->config().gradients)));
+    ar.write("gdr_unet_poisson", torch::tensor(int64_t(net->config().poisson)));
     net->save(ar);
     // Written next to the target and renamed: a reader never sees half a file.
     const std::string tmp = path + ".partial";
@@ -206,15 +234,17 @@ UNet load_weights(const std::string& path) {
         ar.load_from(path);
         torch::Tensor format, widths, gradients;
         format = read_tensor(ar, "gdr_unet_format");
-        if (format.numel() != 1 || format.item<int64_t>() != kFormat)
-            throw InputError("neural: weights file " + path + " has format " + std::to_string(format.item<int64_t>()) +
-                             ", this gdr reads format " + std::to_string(kFormat));
+        const int64_t fmt_was = format.numel() == 1 ? format.item<int64_t>() : -1;
+        if (fmt_was < 1 || fmt_was > kFormat)
+            throw InputError("neural: weights file " + path + " has format " + std::to_string(fmt_was) +
+                             ", this gdr reads formats 1 to " + std::to_string(kFormat));
         widths = read_tensor(ar, "gdr_unet_widths");
         gradients = read_tensor(ar, "gdr_unet_gradients");
         UNetConfig cfg;
         cfg.widths.clear();
         for (int64_t i = 0; i < widths.numel(); ++i) cfg.widths.push_back(int(widths[i].item<int64_t>()));
         cfg.gradients = gradients.item<int64_t>() != 0;
+        cfg.poisson = fmt_was >= 2 && read_tensor(ar, "gdr_unet_poisson").item<int64_t>() != 0;
         UNet net(cfg);
         // torch's reader replaces each tensor without comparing shapes: compare them here.
         std::vector<std::pair<std::string, std::vector<int64_t>>> expect;

@@ -68,6 +68,23 @@ std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& confi
 /// The sample of one frame given as buffers (needs albedo, normal, depth).
 Sample make_sample(const GradientBuffers& noisy, const Image& target, const UNetConfig& config, int spp);
 
+/// A symmetry of a training sample: applied as transpose, then flips, then
+/// a permutation of the colour channels. Rendering is per colour channel
+/// and mirror symmetric, so each maps a sample to another valid one.
+struct Augmentation {
+    bool transpose = false;  ///< Swap x and y (square samples only): dx and dy swap too.
+    bool flip_x = false;     ///< Mirror left-right: dx is negated and moves one pixel.
+    bool flip_y = false;     ///< Mirror top-bottom: dy is negated and moves one pixel.
+    int permutation = 0;     ///< Index 0..5 of a permutation of R, G, B (0 = identity).
+};
+
+/// `s` under `a`, exactly the sample make_input() builds from the transformed
+/// frame (up to the Poisson input's solver tolerance): colours, gradients and
+/// albedo permute their channels; normals (world space) and depth only move.
+/// ParameterError if `a` transposes a non-square sample or the padding is not
+/// the same on both sides of an axis that is flipped.
+Sample augment(const Sample& s, const UNetConfig& config, const Augmentation& a);
+
 /// Settings of a training run; all but `steps` and `threads` must match on resume.
 struct TrainOptions {
     UNetConfig config;              ///< Network shape.
@@ -76,6 +93,10 @@ struct TrainOptions {
     int warmup = 100;               ///< Steps of linear learning-rate warm-up.
     double relmse_weight = 0.01;    ///< Weight of the relMSE term of the loss (see the file comment).
     uint64_t seed = 1;              ///< Seed of the initial weights and of the minibatch draws.
+    /// Each drawn sample under a random one of its symmetries (Augmentation:
+    /// 8 mirror images and transposes of a square sample times 6 colour
+    /// permutations), drawn with the minibatch.
+    bool augment = false;
 };
 
 /// The loss of the file comment for predictions and targets [N, 3, H, W] (radiance).

@@ -40,12 +40,19 @@ struct UNetConfig {
     /// True: inputs include dx and dy (16 channels); false: the primal-only
     /// network (10 channels) that measures what the gradients add.
     bool gradients = true;
+    /// True (needs gradients): the inputs also hold the frame's poisson-l1
+    /// reconstruction (19 channels), and the output is a correction to it
+    /// instead of to the primal. A network of a few pixels' reach cannot
+    /// integrate gradients across the frame; the screened Poisson solve does,
+    /// and the network learns what that solve gets wrong.
+    bool poisson = false;
 
     /// Same shape (same widths and inputs).
     bool operator==(const UNetConfig&) const = default;
 };
 
-/// Input channels of a network of that configuration (16 with gradients, 10 without).
+/// Input channels of a network of that configuration (19 with the Poisson
+/// input, 16 with gradients only, 10 without); ParameterError for poisson without gradients.
 int input_channels(const UNetConfig& config);
 
 /// Pixels of replicate padding added on every side before the network runs.
@@ -85,11 +92,28 @@ torch::Tensor decode_signed(const torch::Tensor& y);
 /// The padded size (>= size + 2 kMargin, a multiple of 2^(levels-1)) of one image dimension (pixels).
 int padded_size(int size, int levels);
 
+/// Where each kind of input sits among a configuration's channels (first
+/// channel index, or -1 if absent); the first three channels are always the
+/// encoded colour the output corrects.
+struct InputLayout {
+    int poisson = -1;  ///< Encoded poisson-l1 reconstruction (3 channels).
+    int primal = 0;    ///< Encoded primal (3).
+    int dx = -1;       ///< Signed-log dx (3).
+    int dy = -1;       ///< Signed-log dy (3).
+    int albedo = 0;    ///< Albedo in [0, 1] (3).
+    int normal = 0;    ///< World-space normal (3).
+    int depth = 0;     ///< Depth over the frame's largest depth (1).
+};
+/// The channel layout of `config`'s input.
+InputLayout input_layout(const UNetConfig& config);
+
 /// The network input [1, C, H', W'] of one frame, padded as the file comment
-/// says: encoded primal, dx, dy (if config.gradients; the unused last column
-/// of dx and last row of dy are zeroed), albedo (clamped to [0, 1]), normal,
-/// and depth divided by the frame's largest depth. Needs the layers
-/// "albedo" (3 channels), "normal" (3) and "depth" (1) through in.layer().
+/// says, in the order of input_layout(): the encoded poisson-l1
+/// reconstruction of primal, dx and dy (if config.poisson), the encoded
+/// primal, dx, dy (if config.gradients; the unused last column of dx and last
+/// row of dy are zeroed), albedo (clamped to [0, 1]), normal, and depth
+/// divided by the frame's largest depth. Needs the layers "albedo" (3
+/// channels), "normal" (3) and "depth" (1) through in.layer().
 torch::Tensor make_input(const GradientBuffers& in, const UNetConfig& config);
 
 /// Runs the network on a frame and returns its primal reconstruction (radiance,
