@@ -19,7 +19,7 @@
 //          [--scenes a,b] [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..]
 //          [--ref-spp N] [--set key=value]... [--l1-set key=value]...
 //          [--weighted NAME:key=value,...]... [--no-bdpt] [--no-gbdpt]
-//          [--no-neural] [--neural-set key=value]...
+//          [--no-neural] [--neural-set key=value]... [--neural-primal-set key=value]...
 //          [--out DIR] [--cache DIR] [--docs DIR] [--threads N]
 //
 //   --scenes a,b      built-in scenes by name (see --help); all six by default
@@ -42,6 +42,13 @@
 //                     the G-PT render of the other rows reconstructed by the U-Net,
 //                     placed at render + inference time.
 //   --neural-set key=value  a parameter of the neural reconstructor (weights, threads).
+//                     With the plugin there is a second row, pt-neural-primal: the
+//                     primal-only network on a render of primal-only samples (gpt
+//                     with every pixel's gradients masked: PT's cost, gpt's layers)
+//                     at budget minus inference time; what the gradients add at
+//                     equal time, against a conventional learned denoiser.
+//   --neural-primal-set key=value  a parameter of that row's network (default
+//                     weights: the committed primal-only twin of the shipped model).
 //   --no-bdpt         leaves BDPT out (a third of the run time).
 //   --no-gbdpt        leaves G-BDPT out (it is timed as G-PT: render + solve).
 #include <algorithm>
@@ -103,6 +110,7 @@ struct Options {
     std::vector<std::pair<std::string, std::string>> weighted;  // (row name, "k=v,k=v") of poisson-weighted rows
     bool bdpt = true, gbdpt = true, neural = true;
     std::vector<std::string> neural_sets;  // "key=value" texts of the neural reconstructor
+    std::vector<std::string> neural_primal_sets;  // the same for the primal-only network's row
     // 192 px and 8 s keep the full run, references included, near 20 minutes on 2 cores.
     int width = 192;
     std::vector<double> budgets{0.25, 0.5, 1, 2, 4, 8};
@@ -165,6 +173,7 @@ Options parse(int argc, char** argv) {
             o.weighted.push_back({"gpt-" + name, colon == std::string::npos ? "" : v.substr(colon + 1)});
         } else if (a == "--no-neural") o.neural = false;
         else if (a == "--neural-set") o.neural_sets.push_back(next());
+        else if (a == "--neural-primal-set") o.neural_primal_sets.push_back(next());
         else if (a == "--no-bdpt") o.bdpt = false;
         else if (a == "--no-gbdpt") o.gbdpt = false;
         else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
@@ -188,6 +197,7 @@ Options parse(int argc, char** argv) {
                         "  --weighted    NAME:k=v,... a poisson-weighted row gpt-NAME (default rows w1: its defaults, w2: norm=l2)\n"
                         "  --no-neural   leave G-PT + neural out (it runs where its plugin is built)\n"
                         "  --neural-set  a neural reconstructor parameter: weights=W.pt, threads=N\n"
+                        "  --neural-primal-set  the same for the primal-only network of row pt-neural-primal\n"
                         "  --no-bdpt     leave BDPT out\n"
                         "  --no-gbdpt    leave G-BDPT out\n"
                         "G-PT times include the reconstruction: equal time charges everything.\n"
@@ -312,6 +322,10 @@ struct Equal {
     Image pt, l1, l2;  // images at the crops budget
     double e_pt = 0, e_l1 = 0, e_l2 = 0, budget = 0;
 };
+
+// The primal-only network of row pt-neural-primal, unless --neural-primal-set weights= says otherwise:
+// the committed twin of the shipped model (same data and training, no gradient inputs).
+const char* const kPrimalModel = GDR_SOURCE_DIR "/neural/models/unet-v2-primal.pt";
 
 // The fixed methods; the poisson-weighted rows (--weighted) follow them.
 constexpr int kNumFixed = 7;
@@ -501,7 +515,8 @@ int main(int argc, char** argv) try {
     }
     // G-PT + neural: the same render, reconstructed by the U-Net, where the
     // plugin is built (otherwise the run is what it is without it).
-    std::unique_ptr<Reconstructor> neural;
+    std::unique_ptr<Reconstructor> neural, neural_primal;
+    int neural_m = -1, primal_m = -1;  // their rows
     if (o.neural) {
         // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise.
         setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
@@ -511,8 +526,19 @@ int main(int argc, char** argv) try {
             for (const std::string& s : o.neural_sets) np.set_from_text(s);
             neural = reconstructor_registry().create("neural", np);
             settings += "; gpt-neural: neural " + one_line(neural->describe());
+            neural_m = int(methods.size());
             methods.push_back("gpt-neural"), labels.push_back("G-PT + neural (U-Net)");
             colors.push_back({20, 20, 140});
+            Params pp("bench_equal_time --neural-primal-set");
+            pp.set("weights", std::string(kPrimalModel));
+            for (const std::string& s : o.neural_sets)
+                if (s.rfind("threads=", 0) == 0) pp.set_from_text(s);
+            for (const std::string& s : o.neural_primal_sets) pp.set_from_text(s);
+            neural_primal = reconstructor_registry().create("neural", pp);
+            settings += "; pt-neural-primal: neural " + one_line(neural_primal->describe());
+            primal_m = int(methods.size());
+            methods.push_back("pt-neural-primal"), labels.push_back("primal-only samples + primal-only U-Net");
+            colors.push_back({140, 140, 220});
         } else {
             std::printf("G-PT + neural left out: %s\n",
                         plugin.path.empty() ? "its plugin is not built (it needs libtorch)"
@@ -563,6 +589,11 @@ int main(int argc, char** argv) try {
         st.threads = o.threads;
         FrameBuffer fb;
         auto t0 = Clock::now();
+        // Primal-only samples: every pixel's gradients masked (gpt then traces
+        // no offset paths, at PT's cost, and still writes the layers the
+        // networks read).
+        Image no_gradients(W, H, 1);
+        double primal_est = 0;
         if (neural) {
             st.spp = 1;
             gpt->render(*scene, st, fb);  // buffers to time the network on
@@ -572,6 +603,11 @@ int main(int argc, char** argv) try {
             t0 = Clock::now();
             (void)neural->reconstruct(gradient_buffers(fb));
             std::printf("  neural inference %.3f s at this resolution\n", since(t0));
+            (void)neural_primal->reconstruct(gradient_buffers(fb));
+            t0 = Clock::now();
+            (void)neural_primal->reconstruct(gradient_buffers(fb));
+            primal_est = since(t0);
+            std::printf("  primal-only network inference %.3f s\n", primal_est);
         }
 
         std::vector<std::vector<CurvePoint>> curve(kNumMethods);
@@ -630,7 +666,19 @@ int main(int argc, char** argv) try {
                 t0 = Clock::now();
                 const Image nimg = neural->reconstruct(gb);
                 const double sn = since(t0);
-                add(kNumMethods - 1, T, render_s + sn, render_s, sn, rs.spp, nimg);
+                add(neural_m, T, render_s + sn, render_s, sn, rs.spp, nimg);
+
+                RenderSettings ps = st;
+                ps.seed = uint64_t(3001 + i);
+                ps.time_budget = std::max(T - primal_est, 0.1 * T);
+                ps.gradient_mask = &no_gradients;
+                t0 = Clock::now();
+                const RenderStats prs = gpt->render(*scene, ps, fb);
+                const double prender_s = since(t0);
+                t0 = Clock::now();
+                const Image pimg = neural_primal->reconstruct(gradient_buffers(fb));
+                const double sp = since(t0);
+                add(primal_m, T, prender_s + sp, prender_s, sp, prs.spp, pimg);
             }
             if (!o.bdpt) continue;
 

@@ -34,8 +34,11 @@ namespace {
 const char* kUsage = R"(usage:
   gdr_train data --out DIR --scenes A.json[,B.json...] [--crops 16] [--size 64]
                  [--spp 4,16,64] [--target-spp 1024] [--seed 1] [--threads 0] [--vary]
+                 [--meshes A.obj[,B.obj...]]
       Renders random views (gpt) into DIR/crop-NNNNN.exr; existing views are kept,
-      so a stopped run continues.
+      so a stopped run continues. --vary recolours materials and emitters of odd
+      views; --meshes stands one of the OBJs, in a random material, in views 2
+      and 3 of every 4.
   gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
                   [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only | --poisson]
                   [--augment] [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
@@ -130,7 +133,8 @@ struct Options {
 };
 
 int data(int argc, char** argv) {
-    const Options o(argc, argv, {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads"},
+    const Options o(argc, argv,
+                    {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads", "--meshes"},
                     {"--vary"});
     DatasetOptions d;
     d.scenes = split(o.need("--scenes"));
@@ -141,6 +145,7 @@ int data(int argc, char** argv) {
     d.seed = uint64_t(o.num("--seed", 1));
     d.threads = int(o.num("--threads", 0));
     d.vary = o.flag("--vary");
+    if (!o.get("--meshes").empty()) d.meshes = split(o.get("--meshes"));
     const auto t0 = std::chrono::steady_clock::now();
     generate_dataset(d, o.need("--out"), [&](int done, int total) {
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -5,7 +5,7 @@
 // weights defaults to the shipped model, looked for at
 // <this library's directory>/GDR_DATA_DIR_FROM_PLUGIN/neural/GDR_SHIPPED_MODEL:
 // installed, <libdir>/gdr/libgdr_neural_plugin.so finds
-// <datadir>/gdr/neural/unet-v1.pt; the build copies the model to the same
+// <datadir>/gdr/neural/unet-v2.pt; the build copies the model to the same
 // relative place in the build tree (build/share/gdr/neural).
 #include <dlfcn.h>
 

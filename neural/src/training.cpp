@@ -17,6 +17,7 @@
 #include "gdr/io/exr.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/scene/bsdf.h"
+#include "gdr/scene/texture.h"
 
 namespace gdr::neural {
 namespace {
@@ -131,6 +132,114 @@ std::unique_ptr<Scene> varied_scene(const Scene& scene, const std::string& origi
     return std::make_unique<Scene>(scene.mesh(), std::move(mats), camera, origin + " (varied)");
 }
 
+/// A random material for an inserted mesh: diffuse, plastic, rough metal,
+/// glass or rough glass, in random colours (the shift mappings' whole range
+/// of roughness).
+Material random_material(std::mt19937_64& rng) {
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const auto colour = [&](float lo) { return Color(lo + (1 - lo) * u(rng), lo + (1 - lo) * u(rng), lo + (1 - lo) * u(rng)); };
+    const float alpha = std::exp(std::log(0.02f) + u(rng) * (std::log(0.5f) - std::log(0.02f)));
+    Material m;
+    switch (int(rng() % 5)) {
+        case 0: m.name = "inserted diffuse", m.bsdf = make_lambertian(make_constant_texture(0.85f * colour(0.05f))); break;
+        case 1:
+            m.name = "inserted plastic";
+            m.bsdf = make_plastic(make_constant_texture(0.8f * colour(0.05f)), Color(0.04f), alpha);
+            break;
+        case 2: m.name = "inserted metal", m.bsdf = make_rough_conductor(colour(0.3f), alpha); break;
+        case 3: m.name = "inserted glass", m.bsdf = make_dielectric(1.5f); break;
+        default: m.name = "inserted rough glass", m.bsdf = make_rough_dielectric(1.5f, alpha); break;
+    }
+    return m;
+}
+
+/// DatasetOptions::meshes: `scene` with the OBJ `obj` standing on a surface
+/// seen by `camera` (the first of 32 camera rays through random pixels that
+/// hits one facing up), or, if none does, floating in front of the first
+/// surface hit; nullptr if no ray hits anything.
+std::unique_ptr<Scene> scene_with_mesh(const Scene& scene, const std::string& origin, const std::string& obj,
+                                       const Camera& camera, std::mt19937_64& rng, bool& standing) {
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const CameraDesc& cd = camera.desc();
+    const Vec3 up = glm::normalize(cd.up);
+    SurfaceInteraction si, first;
+    Vec3 first_dir(0.f);
+    bool any = false;
+    standing = false;
+    for (int k = 0; k < 32 && !standing; ++k) {
+        // The inner 80% of the frame, so that the object is in view.
+        const Vec2 film((0.1f + 0.8f * u(rng)) * float(cd.width), (0.1f + 0.8f * u(rng)) * float(cd.height));
+        const Ray ray = camera.generate_ray(film);
+        if (!scene.intersect(ray, si) || si.is_emitter()) continue;
+        if (!any) first = si, first_dir = ray.d, any = true;
+        // The side the camera sees (the winding's front may face away).
+        const Vec3 n = glm::dot(si.ng, ray.d) < 0.f ? si.ng : -si.ng;
+        standing = glm::dot(n, up) > 0.7f;
+    }
+    if (!any) return nullptr;
+    if (!standing) si = first;
+    TriangleMesh part;
+    std::vector<Material> part_mats;
+    load_obj(obj, Mat4(1.f), part, part_mats);
+    if (part.size() == 0) throw InputError(obj + ": no triangles to place into the data set's views (not an OBJ mesh?)");
+    Vec3 lo(kInf), hi(-kInf);
+    for (const Vec3& p : part.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    // The view's width at the hit's distance; the object spans 30-70% of it.
+    const float width = 2.f * si.t * std::tan(0.5f * glm::radians(cd.fov_deg));
+    const float scale = (0.3f + 0.4f * u(rng)) * width / std::max(1e-6f, glm::length(hi - lo));
+    // Local y up (both shared meshes), base centre at the origin, turned about
+    // up, then y mapped onto the scene's up and the base onto the anchor: the
+    // hit point, or for a floating object a point in front of it by the
+    // object's size, lowered by half its height so that its middle is there.
+    const Vec3 base(0.5f * (lo.x + hi.x), lo.y, 0.5f * (lo.z + hi.z));
+    const float size = scale * glm::length(hi - lo);
+    const Vec3 anchor = standing ? si.p : si.p - first_dir * (0.6f * size) - up * (0.5f * scale * (hi.y - lo.y));
+    const float turn = 6.2831853f * u(rng);
+    const Vec3 side = glm::normalize(std::abs(up.x) < 0.9f ? glm::cross(up, Vec3(1, 0, 0)) : glm::cross(up, Vec3(0, 0, 1)));
+    const Vec3 fwd = glm::cross(side, up);
+    const auto place = [&](const Vec3& p) {
+        const Vec3 q = (p - base) * scale;
+        const float x = std::cos(turn) * q.x + std::sin(turn) * q.z, z = -std::sin(turn) * q.x + std::cos(turn) * q.z;
+        return anchor + x * side + q.y * up + z * fwd;
+    };
+    TriangleMesh mesh = scene.mesh();
+    std::vector<Material> mats = scene.materials();
+    const uint32_t id = uint32_t(mats.size());
+    mats.push_back(random_material(rng));
+    uint32_t object = 0;
+    for (uint32_t o : mesh.object_ids) object = std::max(object, o + 1);
+    if (mesh.object_ids.empty() && mesh.size() > 0) mesh.object_ids.assign(mesh.size(), 0), object = 1;
+    // Shading normals: where only one of the two meshes has them, the other's
+    // triangles get their face normals (their flat shading, unchanged). UVs:
+    // the inserted material is constant, so the part's are not needed.
+    const auto face_normal = [](const Vec3* p) {
+        const Vec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
+        return glm::length(n) > 0.f ? glm::normalize(n) : Vec3(0, 0, 1);
+    };
+    const bool normals = !mesh.normals.empty() || !part.normals.empty();
+    if (normals && mesh.normals.empty())
+        for (size_t t = 0; t < mesh.size(); ++t) mesh.normals.insert(mesh.normals.end(), 3, face_normal(&mesh.positions[3 * t]));
+    for (size_t t = 0; t < part.size(); ++t) {
+        const size_t first = mesh.positions.size();
+        for (int v = 0; v < 3; ++v) mesh.positions.push_back(place(part.positions[3 * t + v]));
+        for (int v = 0; v < 3 && normals; ++v) {
+            if (part.normals.empty()) {
+                mesh.normals.push_back(face_normal(&mesh.positions[first]));
+                continue;
+            }
+            const Vec3 n = part.normals[3 * t + v];
+            const float x = std::cos(turn) * n.x + std::sin(turn) * n.z, z = -std::sin(turn) * n.x + std::cos(turn) * n.z;
+            mesh.normals.push_back(glm::normalize(x * side + n.y * up + z * fwd));
+        }
+        if (!mesh.uvs.empty()) mesh.uvs.insert(mesh.uvs.end(), 3, Vec2(0.f));
+        mesh.material_ids.push_back(id);
+        mesh.object_ids.push_back(object);
+    }
+    auto out = std::make_unique<Scene>(std::move(mesh), std::move(mats), camera, origin + " + " + obj);
+    if (scene.environment()) out->set_environment(scene.shared_environment());
+    return out;
+}
+
 }  // namespace
 
 void generate_dataset(const DatasetOptions& o, const std::string& dir, const std::function<void(int, int)>& progress) {
@@ -166,7 +275,16 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
         } else {
             base.set_camera(camera);
         }
-        Scene& scene = varied ? *varied : base;
+        std::unique_ptr<Scene> with_mesh;
+        std::string inserted;
+        bool standing = false;
+        if (!o.meshes.empty() && i % 4 >= 2) {
+            std::mt19937_64 mesh_rng(mix(mix(o.seed, uint64_t(i)), 0x6d657368ull));  // "mesh"
+            inserted = o.meshes[size_t(i / 4) % o.meshes.size()];
+            with_mesh = scene_with_mesh(varied ? *varied : base, o.scenes[si], inserted, camera, mesh_rng, standing);
+            if (!with_mesh) inserted.clear();
+        }
+        Scene& scene = with_mesh ? *with_mesh : varied ? *varied : base;
         RenderSettings st;
         st.threads = o.threads;
         FrameBuffer out(o.size, o.size), fb;
@@ -182,6 +300,10 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
         }
         out.metadata()["scene"] = o.scenes[si];
         if (vary) out.metadata()["varied"] = "true";
+        if (!inserted.empty()) {
+            out.metadata()["inserted_mesh"] = inserted;
+            out.metadata()["inserted_mesh_placement"] = standing ? "standing" : "floating";
+        }
         out.metadata()["spp"] = levels;
         out.metadata()["target_spp"] = std::to_string(o.target_spp);
         // Written aside and renamed: an interrupted view leaves no file that looks finished.
@@ -297,7 +419,6 @@ Sample augment(const Sample& s, const UNetConfig& config, const Augmentation& a)
     const auto mirror = [&](int dim, int gradient) {
         x = x.flip({dim});
         if (gradient >= 0) {
-            using torch::indexing::Slice;
             const torch::Tensor g = -x.slice(0, gradient, gradient + 3).roll({-1}, {dim});
             x = x.clone();
             x.slice(0, gradient, gradient + 3).copy_(g);

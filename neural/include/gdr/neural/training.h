@@ -51,6 +51,14 @@ struct DatasetOptions {
     /// 1/3 to 3), from a stream of its own, so its camera is the unvaried
     /// view's; even-numbered views show the scenes as they are.
     bool vary = false;
+    /// OBJ files (e.g. ../shared/scenes/meshes) to place into the scenes:
+    /// with any given, views whose index is 2 or 3 mod 4 get one of them
+    /// (in turn) with a random material, standing on a surface that faces
+    /// up in the view (found by camera rays through random pixels; if 32 find
+    /// none, floating in front of the first surface hit), turned about the
+    /// up axis and sized to 30-70% of the view's width there. Views 0 and 1
+    /// mod 4 are the files a run without meshes writes.
+    std::vector<std::string> meshes;
 };
 
 /// Renders the data set into `dir`, one file crop-NNNNN.exr per view (layers
