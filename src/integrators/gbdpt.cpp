@@ -147,8 +147,7 @@ public:
     std::string describe() const override {
         return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
                "\ndrop=" + fmt::format("{}", drop_) + "\nmax_depth=" + std::to_string(max_depth_) +
-               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\nreconstruct=" + recon_.choice +
-               "\nalpha=" + fmt::format("{}", recon_.alpha) + "\n";
+               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\n" + recon_.describe();
     }
 
 protected:

@@ -2,6 +2,7 @@
 // neighbours; the MIS-weighted differences give the gradients dx, dy and the
 // weighted base and offset contributions give the primal image.
 #include <algorithm>
+#include <filesystem>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -235,7 +236,23 @@ GradientReconstructions GradientReconstructions::from(const Params& p, const std
         throw ParameterError(who + ": reconstruct=neural needs the reconstructor 'neural', which is not registered (it "
                                    "is in the optional library gdr_neural, gdr::neural::register_neural_reconstructor; "
                                    "the gdr tool loads it as a plugin)");
+    r.neural_weights = p.get_string("neural_weights", "");
+    if (!r.neural_weights.empty()) {
+        if (r.choice != "neural")
+            throw ParameterError(who + ": neural_weights=" + r.neural_weights + " applies to reconstruct=neural only (this "
+                                       "render has reconstruct=" + r.choice + ")");
+        // Checked before the render, not after it.
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(r.neural_weights, ec))
+            throw ParameterError(who + ": neural_weights=" + r.neural_weights + ": no such file");
+        r.neural_weights = std::filesystem::absolute(r.neural_weights).lexically_normal().string();
+    }
     return r;
+}
+
+std::string GradientReconstructions::describe() const {
+    return "reconstruct=" + choice + "\nalpha=" + fmt::format("{}", alpha) + "\n" +
+           (neural_weights.empty() ? "" : "neural_weights=" + neural_weights + "\n");
 }
 
 void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::string& who) const {
@@ -256,7 +273,11 @@ void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::strin
     rp.set("alpha", alpha);
     if (l1) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
     if (l2) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
-    if (neural) fb.set("reconstruction_neural", reconstruct("neural", Params(who), gb));
+    if (neural) {
+        Params np(who);
+        if (!neural_weights.empty()) np.set("weights", neural_weights);
+        fb.set("reconstruction_neural", reconstruct("neural", np, gb));
+    }
 }
 
 void fill_masked_gradients(FrameBuffer& fb) {

@@ -76,8 +76,7 @@ public:
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_vertices) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
-               "\nprimal=" + (primal_both_ ? "both" : "base") + "\nreconstruct=" + recon_.choice +
-               "\nalpha=" + fmt::format("{}", recon_.alpha) + "\n";
+               "\nprimal=" + (primal_both_ ? "both" : "base") + "\n" + recon_.describe();
     }
 
 protected:

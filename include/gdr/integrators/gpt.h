@@ -58,10 +58,18 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
 struct GradientReconstructions {
     std::string choice = "all";  ///< The `reconstruct` parameter: all, weighted, l1+l2, l1, l2, neural or none.
     double alpha = 0.2;          ///< Weight of the primal in the screened Poisson energy (unitless).
-    /// Reads `reconstruct` and `alpha` for integrator `who`; throws ParameterError
-    /// naming a bad one, or for reconstruct=neural if reconstructor_registry()
-    /// has no "neural" (it is registered by the optional gdr_neural library).
+    /// The `neural_weights` parameter: a weights file for reconstruct=neural
+    /// (made absolute, so that --resume and merge find it from anywhere);
+    /// empty = the neural reconstructor's default (the shipped model).
+    std::string neural_weights;
+    /// Reads `reconstruct`, `alpha` and `neural_weights` for integrator `who`;
+    /// throws ParameterError naming a bad one (neural_weights without
+    /// reconstruct=neural, or a file that does not exist), or for
+    /// reconstruct=neural if reconstructor_registry() has no "neural" (it is
+    /// registered by the optional gdr_neural library).
     static GradientReconstructions from(const Params& p, const std::string& who);
+    /// The parameters above as "key=value" lines (neural_weights only if set), for describe().
+    std::string describe() const;
     /// Sets the chosen layers (reconstruction_weighted, _l1, _l2, _neural; radiance) of
     /// fb's primal and gradients, each with the directly visible emitters
     /// added back. The weighted one reads the variances and the sample
