@@ -522,23 +522,26 @@ int main(int argc, char** argv) try {
         setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
         const cli::PluginLoad& plugin = cli::load_reconstructor_plugins();
         if (reconstructor_registry().has("neural")) {
-            Params np("bench_equal_time --neural-set");
-            for (const std::string& s : o.neural_sets) np.set_from_text(s);
-            neural = reconstructor_registry().create("neural", np);
-            settings += "; gpt-neural: neural " + one_line(neural->describe());
+            // A neural row: its reconstructor from `defaults` then the `sets` texts.
+            const auto add_row = [&](const std::string& row, const std::string& label, Rgb8 colour, Params p,
+                                     const std::vector<std::string>& sets) {
+                for (const std::string& s : sets) p.set_from_text(s);
+                auto rec = reconstructor_registry().create("neural", p);
+                settings += "; " + row + ": neural " + one_line(rec->describe());
+                methods.push_back(row), labels.push_back(label), colors.push_back(colour);
+                return rec;
+            };
             neural_m = int(methods.size());
-            methods.push_back("gpt-neural"), labels.push_back("G-PT + neural (U-Net)");
-            colors.push_back({20, 20, 140});
+            neural = add_row("gpt-neural", "G-PT + neural (U-Net)", {20, 20, 140}, Params("bench_equal_time --neural-set"),
+                             o.neural_sets);
+            // The primal-only network: its own weights, the gradient network's thread count.
             Params pp("bench_equal_time --neural-primal-set");
             pp.set("weights", std::string(kPrimalModel));
             for (const std::string& s : o.neural_sets)
                 if (s.rfind("threads=", 0) == 0) pp.set_from_text(s);
-            for (const std::string& s : o.neural_primal_sets) pp.set_from_text(s);
-            neural_primal = reconstructor_registry().create("neural", pp);
-            settings += "; pt-neural-primal: neural " + one_line(neural_primal->describe());
             primal_m = int(methods.size());
-            methods.push_back("pt-neural-primal"), labels.push_back("primal-only samples + primal-only U-Net");
-            colors.push_back({140, 140, 220});
+            neural_primal = add_row("pt-neural-primal", "primal-only samples + primal-only U-Net", {140, 140, 220}, pp,
+                                    o.neural_primal_sets);
         } else {
             std::printf("G-PT + neural left out: %s\n",
                         plugin.path.empty() ? "its plugin is not built (it needs libtorch)"
@@ -599,14 +602,14 @@ int main(int argc, char** argv) try {
             gpt->render(*scene, st, fb);  // buffers to time the network on
             // Twice: the first run includes torch's one-time set-up, which a
             // renderer that keeps the network loaded pays once.
-            (void)neural->reconstruct(gradient_buffers(fb));
-            t0 = Clock::now();
-            (void)neural->reconstruct(gradient_buffers(fb));
-            std::printf("  neural inference %.3f s at this resolution\n", since(t0));
-            (void)neural_primal->reconstruct(gradient_buffers(fb));
-            t0 = Clock::now();
-            (void)neural_primal->reconstruct(gradient_buffers(fb));
-            primal_est = since(t0);
+            const auto second_run = [&](const Reconstructor& rec) {
+                (void)rec.reconstruct(gradient_buffers(fb));
+                const auto t = Clock::now();
+                (void)rec.reconstruct(gradient_buffers(fb));
+                return since(t);
+            };
+            std::printf("  neural inference %.3f s at this resolution\n", second_run(*neural));
+            primal_est = second_run(*neural_primal);
             std::printf("  primal-only network inference %.3f s\n", primal_est);
         }
 

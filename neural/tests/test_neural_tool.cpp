@@ -272,17 +272,27 @@ TEST_CASE("the shipped model's relMSE on fixed views of the validation scene is 
     REQUIRE(nn_sum < 0.6 * l1_sum);
 }
 
+namespace {
+
+/// A small data set of Cornell-box views at 2 spp (2 render threads).
+neural::DatasetOptions box_views(int crops, int size, int target_spp, uint64_t seed) {
+    neural::DatasetOptions d;
+    d.scenes = {GDR_SOURCE_DIR "/scenes/cornell-box/scene.json"};
+    d.crops = crops;
+    d.size = size;
+    d.spp = {2};
+    d.target_spp = target_spp;
+    d.seed = seed;
+    d.threads = 2;
+    return d;
+}
+
+}  // namespace
+
 TEST_CASE("procedural variation recolours odd views and keeps their cameras", "[neural][data]") {
     // The same seed with and without --vary: view 0 is identical, view 1
     // sees the same geometry (depth and normals equal) with other colours.
-    neural::DatasetOptions d;
-    d.scenes = {GDR_SOURCE_DIR "/scenes/cornell-box/scene.json"};
-    d.crops = 2;
-    d.size = 12;
-    d.spp = {2};
-    d.target_spp = 8;
-    d.seed = 7;
-    d.threads = 2;
+    neural::DatasetOptions d = box_views(2, 12, 8, 7);
     const TempDir plain("vary-plain"), varied("vary-varied");
     neural::generate_dataset(d, plain.path.string());
     d.vary = true;
@@ -301,14 +311,7 @@ TEST_CASE("procedural variation recolours odd views and keeps their cameras", "[
 }
 
 TEST_CASE("shared meshes stand in views 2 and 3 of every 4 and leave the others as they were", "[neural][data]") {
-    neural::DatasetOptions d;
-    d.scenes = {GDR_SOURCE_DIR "/scenes/cornell-box/scene.json"};
-    d.crops = 4;
-    d.size = 16;
-    d.spp = {2};
-    d.target_spp = 4;
-    d.seed = 3;
-    d.threads = 2;
+    neural::DatasetOptions d = box_views(4, 16, 4, 3);
     const TempDir plain("mesh-plain"), with("mesh-with");
     neural::generate_dataset(d, plain.path.string());
     const std::string teapot = GDR_SHARED_DIR "/scenes/meshes/utah-teapot/teapot.obj";
