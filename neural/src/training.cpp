@@ -197,11 +197,12 @@ std::unique_ptr<Scene> scene_with_mesh(const Scene& scene, const std::string& or
     const float turn = 6.2831853f * u(rng);
     const Vec3 side = glm::normalize(std::abs(up.x) < 0.9f ? glm::cross(up, Vec3(1, 0, 0)) : glm::cross(up, Vec3(0, 0, 1)));
     const Vec3 fwd = glm::cross(side, up);
-    const auto place = [&](const Vec3& p) {
-        const Vec3 q = (p - base) * scale;
+    // A local direction turned about local y, in the scene's frame (side, up, fwd).
+    const auto orient = [&](const Vec3& q) {
         const float x = std::cos(turn) * q.x + std::sin(turn) * q.z, z = -std::sin(turn) * q.x + std::cos(turn) * q.z;
-        return anchor + x * side + q.y * up + z * fwd;
+        return x * side + q.y * up + z * fwd;
     };
+    const auto place = [&](const Vec3& p) { return anchor + orient((p - base) * scale); };
     TriangleMesh mesh = scene.mesh();
     std::vector<Material> mats = scene.materials();
     const uint32_t id = uint32_t(mats.size());
@@ -227,9 +228,7 @@ std::unique_ptr<Scene> scene_with_mesh(const Scene& scene, const std::string& or
                 mesh.normals.push_back(face_normal(&mesh.positions[first]));
                 continue;
             }
-            const Vec3 n = part.normals[3 * t + v];
-            const float x = std::cos(turn) * n.x + std::sin(turn) * n.z, z = -std::sin(turn) * n.x + std::cos(turn) * n.z;
-            mesh.normals.push_back(glm::normalize(x * side + n.y * up + z * fwd));
+            mesh.normals.push_back(glm::normalize(orient(part.normals[3 * t + v])));
         }
         if (!mesh.uvs.empty()) mesh.uvs.insert(mesh.uvs.end(), 3, Vec2(0.f));
         mesh.material_ids.push_back(id);
