@@ -18,7 +18,7 @@
 # GDR_SKIP_OPTIONAL=1 leaves them all out.
 set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
-          libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev)
+          libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev zlib1g-dev)
 optional=(slurm-wlm munge)
 optional_python=(python3-dev pybind11-dev python3-numpy python3-matplotlib)
 optional_neural=(libtorch-dev)

@@ -25,9 +25,11 @@
 
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
+#include "gdr/io/mitsuba_serialized.h"
 #include "gdr/io/ply.h"
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
+#include "mitsuba_shapes.h"
 #include "obj_lines.h"
 
 namespace gdr {
@@ -78,6 +80,9 @@ constexpr NamedIor kIors[] = {
 constexpr float kSmoothPlasticAlpha = 0.01f;
 /// Triangulation of spheres (as the shared scenes' converted OBJs) and disks.
 constexpr int kSphereSegments = 64, kSphereRings = 32, kDiskSegments = 64;
+/// Quads around a cylinder: its chords lie within r (1 - cos(pi / 128)) =
+/// 3.0e-4 r of the true surface; its vertex normals are exact.
+constexpr int kCylinderSegments = 128;
 
 /// 0.6's camelCase names in 3.x's snake_case: toWorld -> to_world, intIOR -> int_ior.
 std::string snake_case(const std::string& s) {
@@ -196,13 +201,19 @@ private:
         return s;
     }
     [[noreturn]] void fail(xml_node n, const std::string& msg) const { throw InputError(where(n) + ": " + msg); }
-    void warn(xml_node n, const std::string& msg) { warnings_.push_back(where(n) + ": " + msg); }
+    void warn(xml_node n, const std::string& msg) { warnings_.push_back({where(n), msg}); }
     // An element gdr does not support: an error, or with --lenient one warning
-    // saying what happens instead (the caller then does that).
+    // saying what happens instead. Either way the caller then does that, so
+    // that a strict load goes on and reports every such element at once.
     void unsupported(xml_node n, const std::string& msg, const std::string& instead) {
-        if (!opt_.lenient) fail(n, msg + " (--lenient " + instead + " with a warning)");
-        warn(n, msg + "; " + instead + " (--lenient)");
+        dropped(n, msg + " (--lenient " + instead + " with a warning)", msg + "; " + instead + " (--lenient)");
     }
+    // The same with the whole message of each mode.
+    void dropped(xml_node n, const std::string& strict_msg, const std::string& lenient_msg) {
+        if (!opt_.lenient) strict_errors_.push_back({where(n), strict_msg});
+        else warn(n, lenient_msg);
+    }
+    std::string grouped_report(const std::vector<std::pair<std::string, std::string>>& items, bool errors) const;
 
     // ---- attributes and values
     std::string attr(xml_node n, const char* a) {
@@ -367,7 +378,7 @@ private:
         if (it == ids_.end()) fail(ref, "no element has id '" + id + "'");
         return it->second;
     }
-    std::string file_path(xml_node n, std::string name) const {
+    std::string file_path(xml_node n, std::string name) {
         std::replace(name.begin(), name.end(), '\\', '/');  // scenes written on Windows
         const fs::path f(name);
         if (f.is_absolute()) return f.string();
@@ -375,7 +386,43 @@ private:
         std::error_code ec;
         if (fs::exists(own, ec) || docs_.empty()) return own.string();
         const fs::path root = fs::path(docs_.front().dir) / f;
-        return fs::exists(root, ec) ? root.string() : own.string();
+        if (fs::exists(root, ec)) return root.string();
+        // Scenes written on a case-insensitive file system name files in
+        // another case than they have on disk: such a file is used, with a warning.
+        for (const fs::path& base : {fs::path(doc_of(n).dir), fs::path(docs_.front().dir)}) {
+            fs::path found;
+            if (find_any_case(base, f, found)) {
+                if (case_warned_.insert(found.string()).second)
+                    warn(n, fmt::format("{} is not on disk with this case; using {}", (base / f).string(), found.string()));
+                return found.string();
+            }
+        }
+        return own.string();
+    }
+    // `rel` under `dir`, each of its components matched ignoring ASCII case
+    // where no exact match exists; false if some component has no match.
+    static bool find_any_case(const fs::path& dir, const fs::path& rel, fs::path& out) {
+        const auto lower = [](std::string x) {
+            for (char& c : x) c = char(std::tolower(static_cast<unsigned char>(c)));
+            return x;
+        };
+        fs::path cur = dir;
+        std::error_code ec;
+        for (const fs::path& comp : rel) {
+            if (comp == "." || comp == ".." || fs::exists(cur / comp, ec)) {
+                cur /= comp;
+                continue;
+            }
+            const std::string want = lower(comp.string());
+            std::vector<fs::path> hits;
+            for (fs::directory_iterator it(cur, ec), end; !ec && it != end; it.increment(ec))
+                if (lower(it->path().filename().string()) == want) hits.push_back(it->path());
+            if (hits.empty()) return false;
+            std::sort(hits.begin(), hits.end());  // the same choice on every run
+            cur = hits.front();
+        }
+        out = cur;
+        return fs::exists(cur, ec);
     }
 
     // ---- scene elements
@@ -391,7 +438,9 @@ private:
     Color conductor_f0(Props& p, xml_node n);
     void sensor(xml_node n);
     void integrator(xml_node n);
-    void shape(xml_node n);
+    // `outer` places the shape: an instance's transform, else the identity.
+    void shape(xml_node n, const Mat4& outer = Mat4(1.f));
+    void instance(xml_node n, const Mat4& outer);
     void emitter(xml_node n);
     uint32_t material_for(const std::shared_ptr<BuiltBsdf>& b, const Color& emission, const std::string& shape_name,
                           xml_node at);
@@ -401,6 +450,10 @@ private:
                         bool flip, uint32_t material);
     void load_ply_shape(xml_node n, const std::string& file, bool face_normals, const Mat4& xf, bool flip,
                         uint32_t material);
+    // ---- serialized meshes and the cylinder (mitsuba_shapes.cpp has their geometry)
+    const SerializedFile& serialized_file(const std::string& file);
+    void add_indexed(detail::IndexedMesh m, const Mat4& xf, bool flip, bool face_normals, float max_smooth_angle,
+                     uint32_t material, const std::string& label);
 
     std::string path_;
     const SceneFileOptions& opt_;
@@ -414,7 +467,9 @@ private:
     std::map<const void*, std::shared_ptr<Texture>> textures_;
     std::map<const void*, std::shared_ptr<Texture>> opacities_;  // of a <texture> used as a mask's opacity
     std::set<const void*> building_;  // BSDFs and textures being built (a ref cycle guard)
-    std::vector<std::string> warnings_;
+    std::vector<std::pair<std::string, std::string>> warnings_;       // (where, what) of each --lenient warning
+    std::vector<std::pair<std::string, std::string>> strict_errors_;  // (where, what) of each unsupported element
+    int shape_elements_ = 0, emitter_elements_ = 0;                   // as written in the scene
     std::vector<std::string> inputs_;
     std::shared_ptr<Environment> environment_;  // a constant or envmap emitter, if any
     TriangleMesh mesh_;
@@ -425,6 +480,8 @@ private:
     CameraDesc camera_;
     RenderDefaults defaults_;
     std::vector<std::pair<std::string, long long>> int_params_;
+    std::map<std::string, std::shared_ptr<SerializedFile>> serialized_;  // by path: a file is read once
+    std::set<std::string> case_warned_;  // files found only with another case, warned about once
 };
 
 // ---------------------------------------------------------------- documents
@@ -908,8 +965,8 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
     if (const std::string why = detail::not_a_file(file); !why.empty()) {
         // Published scenes (and their randomised variants) sometimes name
         // textures they do not ship.
-        if (!opt_.lenient) fail(n, file + why + " (--lenient uses a constant in its place with a warning)");
-        warn(n, file + why + (opacity ? "; the surface is opaque (--lenient)" : "; it is mid-grey 0.5 (--lenient)"));
+        dropped(n, file + why + " (--lenient uses a constant in its place with a warning)",
+                file + why + (opacity ? "; the surface is opaque (--lenient)" : "; it is mid-grey 0.5 (--lenient)"));
         return make_constant_texture(Color(opacity ? 1.f : 0.5f));
     }
     try {
@@ -1062,30 +1119,48 @@ void Importer::integrator(xml_node n) {
         return;
     }
     have_integrator_ = true;
-    const std::string type = need_attr(n, "type");
+    // gdr's estimator is chosen by --integrator; what it shares with the
+    // scene's is the path length (max_depth, counted in segments as gdr's)
+    // and where Russian roulette starts. A wrapper (adaptive, irrcache, ...)
+    // passes them on from its nested integrator.
+    xml_node at = n;
+    std::string type = need_attr(n, "type");
     Props p = props(n);
+    for (xml_node c : p.objects)
+        if (std::string(c.name()) == "integrator" && !p.named.count("max_depth")) {
+            at = c;
+            type = need_attr(c, "type");
+            p.used.insert(c.internal_object());
+            Props inner = props(c);
+            for (auto& [name, x] : p.named) inner.named.emplace(name, x);  // the wrapper's own, for the note
+            for (xml_node o : p.objects) if (o != c) inner.objects.push_back(o);
+            p = std::move(inner);
+            break;
+        }
     bool depth_given = false, rr_given = false;
     const long long depth = get_int(p, "max_depth", -1, &depth_given);
     const long long rr = get_int(p, "rr_depth", 5, &rr_given);
     if (depth_given && (depth < -1 || depth == 0)) fail(p.named.at("max_depth"), "max_depth must be -1 (unlimited) or positive");
     if (rr_given && rr < 1) fail(p.named.at("rr_depth"), "rr_depth must be positive");
+    // Hiding the emitters from the camera changes the image: gdr cannot.
+    if (const xml_node h = p.named.count("hide_emitters") ? p.named.at("hide_emitters") : xml_node())
+        if (get_bool(p, "hide_emitters", false))
+            unsupported(h, "unsupported property 'hide_emitters' (gdr's integrators show the emitters)", "shows them");
     static const std::map<std::string, std::string> kKnown = {
         {"path", "pt"}, {"volpath", "pt"}, {"volpath_simple", "pt"}, {"bdpt", "bdpt"}, {"gpt", "gpt"}};
     const auto it = kKnown.find(type);
-    if (it != kKnown.end()) {
-        defaults_.integrator = it->second;
-        ignore(p, {"strict_normals", "block_size", "samples_per_pass", "time_limit"});
-        finish(p);
-    } else {
-        // Another estimator (photon mapping, path guiding, ...) of the same
-        // image: gdr renders it with its path tracer.
-        std::string rest;
-        for (auto& [name, c] : p.named)
-            if (!p.used.count(c.internal_object())) rest += (rest.empty() ? "" : ", ") + name, p.used.insert(c.internal_object());
-        warn(n, "integrator '" + type + "' is rendered with gdr's pt (choose another with --integrator)" +
-                    (rest.empty() ? "" : "; its " + rest + " do not apply"));
-        for (xml_node c : p.objects) unsupported(c, "a nested element of an integrator", "ignores it");
-    }
+    if (it != kKnown.end()) defaults_.integrator = it->second;
+    // Everything else is the other renderer's business: one note names it all.
+    std::string rest;
+    for (auto& [name, c] : p.named)
+        if (!p.used.count(c.internal_object())) rest += (rest.empty() ? "" : ", ") + name;
+    for (xml_node c : p.objects)
+        if (!p.used.count(c.internal_object())) rest += (rest.empty() ? "<" : ", <") + std::string(c.name()) + ">";
+    if (it == kKnown.end())
+        warn(at, "integrator '" + type + "' is rendered with gdr's " + defaults_.integrator +
+                     " (choose another with --integrator)" + (rest.empty() ? "" : "; its " + rest + " do not apply"));
+    else if (!rest.empty())
+        warn(at, "integrator '" + type + "': " + rest + " do not apply to gdr's " + it->second + " and are ignored");
     if (depth_given) int_params_.push_back({"max_depth", depth});
     if (rr_given) int_params_.push_back({"rr_depth", rr});
 }
@@ -1235,15 +1310,92 @@ void Importer::load_ply_shape(xml_node n, const std::string& file, bool face_nor
     add_triangles(p, std::move(nrm), uv, xf, flip, material, file);
 }
 
-void Importer::shape(xml_node n) {
+// ---------------------------------------------------------------- instances, serialized meshes, cylinders
+
+// Mitsuba's instance: the shapes of a shapegroup, placed by the instance's to_world.
+void Importer::instance(xml_node n, const Mat4& outer) {
+    Props p = props(n);
+    const Mat4 xf = outer * get_transform(p, "to_world");
+    xml_node group;
+    for (xml_node c : p.objects) {
+        if (std::string(c.name()) != "ref") continue;
+        p.used.insert(c.internal_object());
+        if (group) fail(c, "an instance refers to one shapegroup");
+        group = resolve(c);
+        if (std::string(group.name()) != "shape" || raw(group, "type") != "shapegroup")
+            fail(c, "refers to " + describe(group) + ", not a <shape type=\"shapegroup\">");
+    }
+    if (!group) fail(n, "an instance needs a <ref id=\"...\"/> to a shapegroup");
+    finish(p);
+    if (!building_.insert(group.internal_object()).second) fail(n, "a shapegroup instances itself");
+    for (xml_node c : group.children())
+        if (c.type() == pugi::node_element) shape(c, xf);
+    building_.erase(group.internal_object());
+}
+
+
+const SerializedFile& Importer::serialized_file(const std::string& file) {
+    auto& f = serialized_[file];
+    if (!f) {
+        f = std::make_shared<SerializedFile>(file);  // read once: scenes take many meshes of one file
+        inputs_.push_back(file);
+    }
+    return *f;
+}
+
+// An indexed mesh in the order Mitsuba 0.5/0.6 builds it: positions and
+// normals to world space (normals by the inverse transpose, normalised), the
+// winding reversed by a mirroring transform, the crease-angle rebuild, then
+// angle-weighted normals where there are none (unless face normals are asked
+// for); flip_normals last, as add_triangles() does for every shape. A
+// negative max_smooth_angle means none was given.
+void Importer::add_indexed(detail::IndexedMesh m, const Mat4& xf, bool flip, bool face_normals, float max_smooth_angle,
+                           uint32_t material, const std::string& label) {
+    const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
+    for (Vec3& q : m.positions) q = Vec3(xf * Vec4(q, 1.f));
+    for (Vec3& nn : m.normals) {
+        nn = nxf * nn;
+        const float len = glm::length(nn);
+        if (len > 0.f) nn /= len;
+    }
+    if (glm::determinant(glm::mat3(xf)) < 0.f)
+        for (size_t t = 0; t + 2 < m.indices.size(); t += 3) std::swap(m.indices[t], m.indices[t + 1]);
+    if (max_smooth_angle >= 0.f && !face_normals) detail::rebuild_with_crease_angle(m, max_smooth_angle);
+    if (face_normals) m.normals.clear();
+    else if (m.normals.empty()) m.normals = detail::angle_weighted_normals(m.positions, m.indices);
+    std::vector<Vec3> p, nrm;
+    std::vector<Vec2> uv;
+    p.reserve(m.indices.size());
+    for (uint32_t i : m.indices) {
+        p.push_back(m.positions[i]);
+        if (!m.normals.empty()) nrm.push_back(m.normals[i]);
+        // Mitsuba's uv has v = 0 at the top of an image: gdr's is (u, 1 - v).
+        if (!m.uvs.empty()) uv.emplace_back(m.uvs[i].x, 1.f - m.uvs[i].y);
+    }
+    add_triangles(p, std::move(nrm), uv, Mat4(1.f), flip, material, label);
+}
+
+void Importer::shape(xml_node n, const Mat4& outer) {
     const std::string type = need_attr(n, "type");
-    static const std::set<std::string> kTypes = {"obj", "ply", "rectangle", "cube", "sphere", "disk"};
+    shape_elements_ += type != "shapegroup";
+    static const std::set<std::string> kTypes = {"obj", "ply", "serialized", "rectangle", "cube", "sphere", "disk",
+                                                 "cylinder"};
+    if (type == "shapegroup") {
+        // Its shapes are rendered only where an instance places them.
+        if (std::string(n.parent().name()) != "scene") fail(n, "a shapegroup must be a top-level element");
+        if (!n.attribute("id")) fail(n, "a shapegroup needs an id for its instances to refer to");
+        for (xml_node c : n.children())
+            if (c.type() == pugi::node_element && std::string(c.name()) != "shape")
+                fail(c, "a shapegroup holds only <shape> elements");
+        return;
+    }
+    if (type == "instance") return instance(n, outer);
     if (!kTypes.count(type)) {
         unsupported(n, "unsupported shape type '" + type + "'", "skips it");
         return;
     }
     Props p = props(n);
-    const Mat4 xf = get_transform(p, "to_world");
+    const Mat4 xf = outer * get_transform(p, "to_world");
     const bool flip = get_bool(p, "flip_normals", false);
     const std::string id = n.attribute("id") ? attr(n, "id") : fmt::format("{} (line {})", type, line_of(n));
     // Its BSDF and emitter.
@@ -1266,6 +1418,7 @@ void Importer::shape(xml_node n) {
             // Other references (media) are reported by finish().
         } else if (tag == "emitter") {
             p.used.insert(c.internal_object());
+            ++emitter_elements_;
             const std::string et = need_attr(c, "type");
             if (et != "area") {
                 unsupported(c, "emitter type '" + et + "' on a shape (gdr's shapes emit as area lights)", "skips it");
@@ -1303,13 +1456,59 @@ void Importer::shape(xml_node n) {
         const std::string file = file_path(n, name);
         if (const std::string why = detail::not_a_file(file); !why.empty()) {
             // Published scenes are sometimes shipped without their largest meshes.
-            if (!opt_.lenient) fail(n, file + why + " (--lenient skips the shape with a warning)");
-            warn(n, file + why + "; the shape is skipped (--lenient)");
+            dropped(n, file + why + " (--lenient skips the shape with a warning)",
+                    file + why + "; the shape is skipped (--lenient)");
             return;
         }
         const uint32_t mat = material_for(b, radiance, id, n);
         if (type == "obj") load_obj_shape(n, file, face_normals, flip_uv, xf, flip, mat);
         else load_ply_shape(n, file, face_normals, xf, flip, mat);
+        return;
+    }
+    if (type == "serialized") {
+        const std::string name = get_string(p, "filename", "");
+        if (name.empty()) fail(n, "needs a 'filename'");
+        const long long index = get_int(p, "shape_index", 0);
+        if (index < 0) fail(p.named.at("shape_index"), "shape_index must be >= 0");
+        const bool face_normals = get_bool(p, "face_normals", false);
+        bool angle_given = false;
+        const float angle = get_float(p, "max_smooth_angle", 0.f, &angle_given);
+        if (angle_given && face_normals) fail(n, "give either face_normals or max_smooth_angle, not both (as Mitsuba)");
+        if (angle_given && !(angle >= 0.f && angle <= 180.f))
+            fail(p.named.at("max_smooth_angle"), "max_smooth_angle must lie in [0, 180] degrees");
+        finish(p);
+        const std::string file = file_path(n, name);
+        if (const std::string why = detail::not_a_file(file); !why.empty()) {
+            dropped(n, file + why + " (--lenient skips the shape with a warning)",
+                    file + why + "; the shape is skipped (--lenient)");
+            return;
+        }
+        SerializedMesh sm;
+        try {
+            sm = serialized_file(file).mesh(size_t(index));
+        } catch (const InputError& e) {
+            serialized_.erase(file);
+            const std::string what = e.what();
+            fail(n, what.find("shape index") == std::string::npos ? fmt::format("{} (reading shape index {})", what, index)
+                                                                  : what);
+        }
+        // Vertex colours are read but unused: gdr has no per-vertex colour
+        // (Mitsuba shows them only through a vertexcolors texture).
+        detail::IndexedMesh m{std::move(sm.positions), std::move(sm.normals), std::move(sm.uvs), std::move(sm.colors),
+                              std::move(sm.indices)};
+        const uint32_t mat = material_for(b, radiance, id, n);
+        add_indexed(std::move(m), xf, flip, face_normals || sm.face_normals, angle_given ? angle : -1.f, mat,
+                    fmt::format("{}@{}", file, index));
+        return;
+    }
+    if (type == "cylinder") {
+        const Vec3 p0 = get_point(p, "p0", Vec3(0.f)), p1 = get_point(p, "p1", Vec3(0.f, 0.f, 1.f));
+        const float r = get_float(p, "radius", 1.f);
+        if (!(r > 0.f)) fail(n, "radius must be positive");
+        if (!(glm::length(p1 - p0) > 0.f)) fail(n, "p0 and p1 coincide");
+        finish(p);
+        const uint32_t mat = material_for(b, radiance, id, n);
+        add_indexed(detail::cylinder_mesh(p0, p1, r, kCylinderSegments), xf, flip, false, -1.f, mat, label(type));
         return;
     }
     std::vector<Vec3> pos, nrm;
@@ -1365,6 +1564,7 @@ void Importer::shape(xml_node n) {
 }
 
 void Importer::emitter(xml_node n) {
+    ++emitter_elements_;
     const std::string type = need_attr(n, "type");
     if (type == "constant" || type == "envmap") {
         if (environment_) fail(n, "a scene takes one environment emitter (constant or envmap)");
@@ -1400,10 +1600,10 @@ void Importer::emitter(xml_node n) {
         return;
     }
     if (type == "sunsky" || type == "sky" || type == "sun") {
-        if (!opt_.lenient)
-            fail(n, "sun and sky emitters (sunsky, sky, sun) are not supported (--lenient skips it with a warning and "
-                    "renders the scene's other lights)");
-        warn(n, "sun and sky emitters are not supported; skipped (--lenient), so only the other lights light the scene");
+        dropped(n,
+                "sun and sky emitters (sunsky, sky, sun) are not supported (--lenient skips it with a warning and "
+                "renders the scene's other lights)",
+                "sun and sky emitters are not supported; skipped (--lenient), so only the other lights light the scene");
         return;
     }
     if (type == "area") fail(n, "an area emitter belongs inside a <shape>");
@@ -1449,8 +1649,14 @@ SceneFile Importer::run() {
             throw InputError(path_ + ": -D " + name + "=" + value +
                              (declared_.count(name) ? ": the scene declares $" + name + " but uses it nowhere"
                                                     : ": the scene has no parameter $" + name));
+    if (!strict_errors_.empty()) throw InputError(grouped_report(strict_errors_, true));
     if (!have_sensor_) throw InputError(path_ + ": the scene has no <sensor> (gdr needs a perspective camera)");
-    if (mesh_.size() == 0) throw InputError(path_ + ": the scene has no shapes");
+    if (mesh_.size() == 0) {
+        if (shape_elements_ == 0) throw InputError(path_ + ": the scene has no shapes");
+        throw InputError(fmt::format("{}: every shape was dropped ({} <shape> element{}), nothing is left to render:\n{}",
+                                     path_, shape_elements_, shape_elements_ == 1 ? "" : "s",
+                                     grouped_report(warnings_, false)));
+    }
 
     SceneFile sf;
     sf.path = path_;
@@ -1466,6 +1672,12 @@ SceneFile Importer::run() {
     sf.meshes = std::move(stats_);
     sf.scene = std::make_unique<Scene>(std::move(mesh_), std::move(materials_), camera, path_);
     if (environment_) sf.scene->set_environment(std::move(environment_));
+    // A scene whose lights were all dropped renders black: not a result.
+    if (emitter_elements_ > 0 && !sf.scene->has_lights())
+        throw InputError(fmt::format("{}: every emitter was dropped ({} <emitter> element{}), the image would be "
+                                     "black:\n{}",
+                                     path_, emitter_elements_, emitter_elements_ == 1 ? "" : "s",
+                                     grouped_report(warnings_, false)));
     std::set<std::string> seen;
     for (std::string& f : inputs_)
         if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
@@ -1478,8 +1690,59 @@ SceneFile Importer::run() {
         for (const unsigned char c : key) h = (h ^ c) * 0x100000001b3ull;
         sf.content_hash = fmt::format("{:016x}", h);
     }
-    sf.warnings = std::move(warnings_);
+    // Repeated warnings once each, with their count and places.
+    const std::string report = grouped_report(warnings_, false);
+    for (size_t b = 0; b < report.size();) {
+        size_t e = report.find('\n', b);
+        if (e == std::string::npos) e = report.size();
+        sf.warnings.push_back(report.substr(b, e - b));
+        b = e + 1;
+    }
     return sf;
+}
+
+// Warnings: one line per distinct message, "where: what" when it occurs
+// once, else the first place, the message and the count, then up to 8 more
+// places. Errors (the strict mode's unsupported elements): headed by their
+// count, one line each.
+std::string Importer::grouped_report(const std::vector<std::pair<std::string, std::string>>& items, bool errors) const {
+    if (errors && items.size() == 1) return items[0].first + ": " + items[0].second;
+    if (errors) {
+        std::set<std::string> distinct;
+        for (const auto& it : items) distinct.insert(it.second);
+        std::string out = fmt::format("{}: {} unsupported elements and properties ({} distinct), each an error without "
+                                      "--lenient:",
+                                      path_, items.size(), distinct.size());
+        for (const auto& [at, what] : items) out += "\n  " + at + ": " + what;
+        return out;
+    }
+    std::vector<std::string> order;
+    std::map<std::string, std::vector<std::string>> places;
+    for (const auto& [at, what] : items) {
+        auto& v = places[what];
+        if (v.empty()) order.push_back(what);
+        v.push_back(at);
+    }
+    std::string out;
+    const size_t shown = 9;
+    for (const std::string& what : order) {
+        const auto& v = places.at(what);
+        std::string line = v[0] + ": " + what;
+        if (v.size() > 1) {
+            line += fmt::format(" [{} times; also at ", v.size());
+            for (size_t i = 1; i < v.size() && i < shown; ++i) {
+                // The place without the element text after the line number: "file:line".
+                const size_t colon = v[i].find(':', v[i].rfind('/') == std::string::npos ? 0 : v[i].rfind('/'));
+                const size_t end = colon == std::string::npos ? std::string::npos : v[i].find(':', colon + 1);
+                line += (i > 1 ? ", " : "") + (end == std::string::npos ? v[i] : v[i].substr(0, end));
+            }
+            if (v.size() > shown) line += fmt::format(", and {} more", v.size() - shown);
+            line += "]";
+        }
+        if (!out.empty()) out += '\n';
+        out += line;
+    }
+    return out;
 }
 
 }  // namespace

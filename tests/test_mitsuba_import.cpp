@@ -1,0 +1,257 @@
+// The Mitsuba importer's report and its shapes: strict mode lists every
+// unsupported element at once, --lenient groups repeated warnings, a load
+// that drops every shape or every emitter is an error in both modes, a file
+// named in another case is found, the scene's integrator keeps its path
+// length and notes the rest; cylinders, shapegroups and instances; and every
+// shared Mitsuba scene loads (or names what it lacks) and renders without NaN.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <fmt/core.h>
+
+#include "cli_test_util.h"
+#include "gdr/core/error.h"
+#include "gdr/integrators/integrator.h"
+#include "gdr/io/scene_file.h"
+#include "gdr/io/mitsuba_xml.h"
+
+using namespace gdr;
+using namespace gdr::test;
+
+namespace {
+
+const std::string kSharedMitsuba = std::string(GDR_SHARED_DIR) + "/scenes/mitsuba";
+
+const std::string kSensor = R"(
+  <sensor type="perspective">
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
+  </sensor>)";
+
+struct XmlScene {
+    OutDir dir{"mitsuba-import"};
+    std::string write(const std::string& name, const std::string& text) const {
+        std::ofstream(dir(name), std::ios::binary) << text;
+        return dir(name);
+    }
+    // The sensor takes lines 1 to 5: `body` starts on line 6.
+    std::string path(const std::string& body) const {
+        return write("scene.xml", "<scene version=\"0.6.0\">" + kSensor + "\n" + body + "\n</scene>\n");
+    }
+    SceneFile load(const std::string& body, bool lenient = false) const {
+        SceneFileOptions o;
+        o.lenient = lenient;
+        return load_mitsuba_scene(path(body), o);
+    }
+    std::string error(const std::string& body, bool lenient = false) const {
+        try {
+            load(body, lenient);
+        } catch (const InputError& e) {
+            return e.what();
+        }
+        return "";
+    }
+};
+
+const std::string kRect = R"(<shape type="rectangle"><emitter type="area"/></shape>)";
+
+size_t count_of(const std::string& s, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = s.find(what); at != std::string::npos; at = s.find(what, at + 1)) ++n;
+    return n;
+}
+
+}  // namespace
+
+TEST_CASE("mitsuba import: strict mode lists every unsupported element at once", "[mitsuba][errors]") {
+    XmlScene s;
+    const std::string body = R"(<shape type="hair" id="fur"/>
+<shape type="rectangle"><bsdf type="hanrahan" id="skin"/></shape>
+<shape type="rectangle"><bsdf type="diffuse" id="d"><float name="sheen" value="1"/></bsdf></shape>
+<emitter type="sunsky" id="sky"/>
+)" + kRect;
+    const std::string e = s.error(body);
+    const std::string file = s.dir("scene.xml");
+    CAPTURE(e);
+    CHECK_THAT(e, Catch::StartsWith(file + ": 4 unsupported elements and properties"));
+    CHECK_THAT(e, Catch::Contains(file + ":6: <shape type=\"hair\" id=\"fur\">: unsupported shape type 'hair'"));
+    CHECK_THAT(e, Catch::Contains(file + ":7: <bsdf type=\"hanrahan\" id=\"skin\">") && Catch::Contains("'hanrahan'"));
+    CHECK_THAT(e, Catch::Contains(file + ":8: <float name=\"sheen\">") && Catch::Contains("unsupported property 'sheen'"));
+    CHECK_THAT(e, Catch::Contains(file + ":9: <emitter type=\"sunsky\" id=\"sky\">"));
+    // Each says what --lenient would do instead, which it then does.
+    CHECK(count_of(e, "--lenient") == 5);  // the heading and the four
+    const SceneFile l = s.load(body, true);
+    CHECK(l.warnings.size() == 4);
+    CHECK(l.scene->mesh().size() == 6);
+}
+
+TEST_CASE("mitsuba import: --lenient groups a repeated warning with its count", "[mitsuba][errors]") {
+    XmlScene s;
+    std::string body = kRect;
+    for (int i = 0; i < 12; ++i) body += fmt::format("\n<shape type=\"rectangle\"><bsdf type=\"hanrahan\" id=\"b{}\"/></shape>", i);
+    const SceneFile l = s.load(body, true);
+    REQUIRE(l.warnings.size() == 1);
+    const std::string& w = l.warnings[0];
+    CAPTURE(w);
+    // The first place in full, the count, 8 more places as file:line, and how many are left.
+    CHECK_THAT(w, Catch::Contains(":7: <bsdf type=\"hanrahan\" id=\"b0\">") && Catch::Contains("[12 times; also at ") &&
+                      Catch::Contains("scene.xml:9, ") && Catch::Contains(", and 3 more]"));
+    // Strictly, every one of the 12 is listed.
+    const std::string e = s.error(body);
+    CHECK(count_of(e, "<bsdf type=\"hanrahan\"") == 12);
+}
+
+TEST_CASE("mitsuba import: dropping every shape or every emitter is an error in both modes", "[mitsuba][errors]") {
+    XmlScene s;
+    for (bool lenient : {false, true}) {
+        INFO("lenient " << lenient);
+        const std::string shapes = s.error(R"(<shape type="hair"/><shape type="hair"/>)", lenient);
+        CHECK_THAT(shapes, Catch::Contains("unsupported shape type 'hair'"));
+        if (lenient) CHECK_THAT(shapes, Catch::Contains("every shape was dropped (2 <shape> elements)"));
+        const std::string lights = s.error(R"(<emitter type="sunsky"/><shape type="rectangle"/>)", lenient);
+        CHECK_THAT(lights, Catch::Contains("sun and sky emitters"));
+        if (lenient) CHECK_THAT(lights, Catch::Contains("every emitter was dropped (1 <emitter> element)"));
+    }
+    // A scene that declares no emitter at all is the author's choice: it loads.
+    CHECK_NOTHROW(s.load(R"(<shape type="rectangle"/>)"));
+    // One light of two dropped is a warning only.
+    const SceneFile l = s.load(R"(<emitter type="sunsky"/>)" + kRect, true);
+    CHECK(l.scene->has_lights());
+}
+
+TEST_CASE("mitsuba import: a file named in another case than on disk is used with a warning", "[mitsuba]") {
+    XmlScene s;
+    std::filesystem::create_directories(s.dir("Meshes"));
+    s.write("Meshes/Tri.OBJ", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    const SceneFile sf = s.load(R"(<shape type="obj"><string name="filename" value="meshes\tri.obj"/></shape>)");
+    CHECK(sf.scene->mesh().size() == 1);
+    REQUIRE(sf.warnings.size() == 1);
+    CHECK_THAT(sf.warnings[0], Catch::Contains("is not on disk with this case; using") && Catch::Contains("Meshes/Tri.OBJ"));
+    // No file of any case: still "file not found".
+    CHECK_THAT(s.error(R"(<shape type="obj"><string name="filename" value="meshes/quad.obj"/></shape>)"),
+               Catch::Contains("quad.obj: file not found"));
+}
+
+TEST_CASE("mitsuba import: the scene's integrator keeps max_depth and rr_depth and notes the rest", "[mitsuba]") {
+    XmlScene s;
+    // The shared scenes' integrator with -D method=path: dualBuffer and the photon mapper's settings do not apply.
+    const std::string gpm = R"(<integrator type="path"><integer name="maxDepth" value="10"/>
+        <integer name="photonCount" value="100000"/><boolean name="dualBuffer" value="false"/></integrator>)";
+    const SceneFile p = s.load(gpm + kRect);
+    CHECK(p.defaults.integrator == "pt");
+    CHECK(p.defaults.params.get_int("max_depth", -99) == 10);
+    REQUIRE(p.warnings.size() == 1);
+    CHECK_THAT(p.warnings[0], Catch::Contains("dual_buffer, photon_count do not apply"));
+    // A wrapper passes on its nested integrator's path length.
+    const SceneFile a = s.load(R"(<integrator type="adaptive"><float name="maxError" value="0.05"/>
+        <integrator type="bdpt"><integer name="maxDepth" value="7"/><integer name="rrDepth" value="3"/></integrator></integrator>)" +
+                               kRect);
+    CHECK(a.defaults.integrator == "bdpt");
+    CHECK(a.defaults.params.get_int("max_depth", -99) == 7);
+    CHECK(a.defaults.params.get_int("rr_depth", -99) == 3);
+    CHECK(a.warnings.size() == 1);
+    // What changes the image stays an error.
+    CHECK_THAT(s.error(R"(<integrator type="path"><boolean name="hideEmitters" value="true"/></integrator>)" + kRect),
+               Catch::Contains("hide_emitters"));
+}
+
+TEST_CASE("mitsuba import: cylinders lie on their surface, face outwards and have its area", "[mitsuba]") {
+    XmlScene s;
+    const SceneFile sf = s.load(R"(<shape type="cylinder"><point name="p0" x="1" y="0" z="0"/><point name="p1" x="1" y="0" z="3"/>
+        <float name="radius" value="0.5"/><transform name="toWorld"><translate y="2"/></transform></shape>)");
+    const TriangleMesh& m = sf.scene->mesh();
+    REQUIRE(m.size() == 256);
+    double area = 0.0;
+    for (size_t t = 0; t < m.size(); ++t) {
+        const Vec3 a = m.positions[3 * t], b = m.positions[3 * t + 1], c = m.positions[3 * t + 2];
+        const Vec3 g = glm::cross(b - a, c - a);
+        area += 0.5 * double(glm::length(g));
+        for (int k = 0; k < 3; ++k) {
+            const Vec3 q = m.positions[3 * t + k];
+            const Vec3 radial = Vec3(q.x - 1.f, q.y - 2.f, 0.f);
+            CHECK(glm::length(radial) == Approx(0.5f).margin(1e-5));
+            CHECK((q.z > -1e-5f && q.z < 3.f + 1e-5f));
+            // The vertex normal is the exact radial direction; the face faces the same way.
+            CHECK(glm::length(glm::normalize(m.normals[3 * t + k]) - radial / 0.5f) < 1e-4f);
+            CHECK(glm::dot(g, radial) > 0.f);
+        }
+    }
+    // The inscribed prism's area: 2 pi r h sin(pi/128)/(pi/128), within 1e-4 of the true one.
+    CHECK(area == Approx(2.0 * 3.14159265358979 * 0.5 * 3.0).epsilon(1e-3));
+}
+
+TEST_CASE("mitsuba import: a shapegroup renders where its instances place it", "[mitsuba]") {
+    XmlScene s;
+    const std::string group = R"(<shape type="shapegroup" id="g">
+        <shape type="rectangle"><transform name="toWorld"><scale value="0.5"/></transform></shape>
+        <shape type="cube"><transform name="toWorld"><scale value="0.1"/><translate z="1"/></transform></shape></shape>)";
+    const auto inst = [](float x) {
+        return fmt::format(R"(<shape type="instance"><ref id="g"/><transform name="toWorld"><translate x="{}"/></transform></shape>)", x);
+    };
+    const SceneFile sf = s.load(group + inst(-2.f) + inst(3.f));
+    const TriangleMesh& m = sf.scene->mesh();
+    REQUIRE(m.size() == 2 * (2 + 12));
+    // The first instance's rectangle spans x in [-2.5, -1.5], its cube is at z = 1 around x = -2.
+    CHECK(m.positions[0].x == Approx(-2.5f));
+    CHECK(m.positions[2 * 3].z == Approx(0.9f).margin(1e-5));
+    CHECK(m.positions[14 * 3].x == Approx(2.5f));
+    // The group alone renders nothing; an instance must refer to a shapegroup.
+    CHECK_THAT(s.error(group), Catch::Contains("the scene has no shapes"));
+    CHECK_THAT(s.error(group + R"(<bsdf type="diffuse" id="d"/><shape type="instance"><ref id="d"/></shape>)"),
+               Catch::Contains("not a <shape type=\"shapegroup\">"));
+}
+
+TEST_CASE("mitsuba import: every shared Mitsuba scene loads or names what it lacks, and renders without NaN",
+          "[mitsuba][shared]") {
+    namespace fs = std::filesystem;
+    if (!fs::is_directory(kSharedMitsuba)) {
+        WARN("skipped: " << kSharedMitsuba << " is absent");
+        return;
+    }
+    std::vector<fs::path> scenes;
+    for (const auto& d : fs::directory_iterator(kSharedMitsuba))
+        if (fs::exists(d.path() / "scene.xml")) scenes.push_back(d.path() / "scene.xml");
+    std::sort(scenes.begin(), scenes.end());
+    REQUIRE(!scenes.empty());
+    std::string table;
+    for (const fs::path& path : scenes) {
+        const std::string name = path.parent_path().filename().string();
+        INFO(name);
+        std::string strict = "loads strictly";
+        SceneFileOptions o;
+        try {
+            load_mitsuba_scene(path.string(), o);
+        } catch (const InputError& e) {
+            // Not loading strictly is fine only when the report names what is unsupported or missing.
+            strict = e.what();
+            CHECK_THAT(strict, Catch::Contains("--lenient") || Catch::Contains("every emitter was dropped"));
+        }
+        o.lenient = true;
+        std::string lenient = "renders";
+        try {
+            SceneFile sf = load_mitsuba_scene(path.string(), o);
+            set_resolution(sf, 16, 9);
+            Params p;
+            p.set("max_depth", 6LL);
+            auto integ = integrator_registry().create("pt", p);
+            RenderSettings st;
+            st.spp = 2;
+            FrameBuffer fb;
+            const RenderStats rs = integ->render(*sf.scene, st, fb);
+            CHECK(rs.nonfinite == 0);
+            for (float v : fb.get("color").values()) REQUIRE(std::isfinite(v));
+            lenient = fmt::format("renders with {} warning(s)", sf.warnings.size());
+        } catch (const InputError& e) {
+            // Only a scene whose every light is unsupported may fail with --lenient.
+            lenient = e.what();
+            CHECK_THAT(lenient, Catch::Contains("every emitter was dropped"));
+        }
+        table += fmt::format("\n== {}\nstrict: {}\nlenient: {}", name, strict, lenient.substr(0, 300));
+    }
+    WARN("status of the shared Mitsuba scenes:" << table);
+}
