@@ -255,3 +255,40 @@ TEST_CASE("mitsuba import: every shared Mitsuba scene loads or names what it lac
     }
     WARN("status of the shared Mitsuba scenes:" << table);
 }
+
+TEST_CASE("mitsuba import: a mirroring sensor to_world shows the world mirrored", "[mitsuba]") {
+    XmlScene s;
+    // An asymmetric scene: an emitting rectangle right of the axis, a cube above it.
+    const std::string body = R"(<shape type="rectangle"><transform name="toWorld"><scale value="0.3"/><translate x="1" y="0.2"/></transform>
+        <emitter type="area"/></shape>
+        <shape type="cube"><transform name="toWorld"><scale value="0.2"/><translate x="0.5" y="1"/></transform></shape>)";
+    const auto at = [&](const std::string& transform) {
+        return s.write("m.xml", "<scene version=\"0.6.0\"><sensor type=\"perspective\"><transform name=\"toWorld\">" + transform +
+                                    R"(</transform><film type="hdrfilm"><integer name="width" value="40"/>
+            <integer name="height" value="30"/></film></sensor>)" + body + "</scene>");
+    };
+    const std::string look = R"(<lookat origin="0.37, 0.1, 5" target="0.2, 0.3, 0" up="0.1, 1, 0"/>)";
+    const SceneFile plain = load_mitsuba_scene(at(look), {});
+    const SceneFile mirrored = load_mitsuba_scene(at("<scale x=\"-1\"/>" + look), {});
+    REQUIRE(plain.scene->mesh().size() == mirrored.scene->mesh().size());
+    const Camera& a = plain.scene->camera();
+    const Camera& b = mirrored.scene->camera();
+    // Every corner lands at the mirror image (x -> width - x) of where it lands
+    // unmirrored, and each triangle keeps its front towards the same side.
+    for (size_t t = 0; t < plain.scene->mesh().size(); ++t) {
+        const auto& pa = plain.scene->mesh().positions;
+        const auto& pb = mirrored.scene->mesh().positions;
+        const int perm[3] = {0, 2, 1};  // the mirrored triangle's corners 1 and 2 are swapped
+        for (int k = 0; k < 3; ++k) {
+            Vec2 fa, fb;
+            REQUIRE(a.project(pa[3 * t + k], fa));
+            REQUIRE(b.project(pb[3 * t + perm[k]], fb));
+            CHECK(fb.x == Approx(40.f - fa.x).margin(1e-3));
+            CHECK(fb.y == Approx(fa.y).margin(1e-3));
+        }
+        const auto facing = [](const std::vector<Vec3>& p, size_t tri, const Vec3& eye) {
+            return glm::dot(glm::cross(p[3 * tri + 1] - p[3 * tri], p[3 * tri + 2] - p[3 * tri]), eye - p[3 * tri]) > 0.f;
+        };
+        CHECK(facing(pa, t, Vec3(0.37f, 0.1f, 5.f)) == facing(pb, t, Vec3(0.37f, 0.1f, 5.f)));
+    }
+}

@@ -478,6 +478,10 @@ private:
     std::shared_ptr<BuiltBsdf> default_bsdf_;
     bool have_sensor_ = false, have_integrator_ = false;
     CameraDesc camera_;
+    // The reflection that a mirroring sensor to_world puts on the world (see sensor()).
+    Mat4 mirror_{1.f};
+    bool mirrored_ = false;
+    void mirror_world();
     RenderDefaults defaults_;
     std::vector<std::pair<std::string, long long>> int_params_;
     std::map<std::string, std::shared_ptr<SerializedFile>> serialized_;  // by path: a file is read once
@@ -1089,9 +1093,18 @@ void Importer::sensor(xml_node n) {
     const Vec3 left = Vec3(m * Vec4(1.f, 0.f, 0.f, 0.f));
     if (!(glm::length(fwd) > 0.f) || !(glm::length(up) > 0.f) || !is_finite(pos))
         fail(n, "to_world is degenerate");
-    // Mitsuba's camera x axis points left in the image; gdr's right is cross(forward, up).
-    if (glm::dot(left, glm::cross(fwd, up)) > 0.f)
-        unsupported(n, "a to_world that mirrors the image", "renders it unmirrored");
+    // Mitsuba's camera x axis points left in the image; gdr's right is
+    // cross(forward, up). A to_world that mirrors the image is rendered as
+    // the mirror image of the world through the unmirrored camera: the
+    // world is reflected in the plane of the camera's forward and up axes
+    // (mirror_world()), which projects every point where the mirrored
+    // camera would.
+    if (glm::dot(left, glm::cross(fwd, up)) > 0.f) {
+        const Vec3 r = glm::normalize(glm::cross(fwd, up));
+        mirror_ = Mat4(glm::mat3(1.f) - 2.f * glm::outerProduct(r, r));
+        mirror_[3] = Vec4(2.f * glm::dot(pos, r) * r, 1.f);
+        mirrored_ = true;
+    }
     if (!(fov > 0.f && fov < 180.f)) fail(n, fmt::format("fov must lie in (0, 180) degrees, got {}", fov));
     const float aspect = float(width) / float(height);
     const float t = std::tan(0.5f * fov * kPi / 180.f);
@@ -1308,6 +1321,23 @@ void Importer::load_ply_shape(xml_node n, const std::string& file, bool face_nor
     }
     if (m.normals.empty() && !face_normals) nrm = smooth_normals(m.positions, m.indices);
     add_triangles(p, std::move(nrm), uv, xf, flip, material, file);
+}
+
+// ---------------------------------------------------------------- the mirrored sensor
+
+// The triangles reflected by mirror_, each with two corners swapped so that
+// its winding's normal stays the reflection of the original's (the front,
+// emitting side is kept); the normals are reflected too. The environment
+// was reflected where it was built.
+void Importer::mirror_world() {
+    const glm::mat3 w(mirror_);
+    for (Vec3& q : mesh_.positions) q = Vec3(mirror_ * Vec4(q, 1.f));
+    for (Vec3& nn : mesh_.normals) nn = w * nn;
+    for (size_t t = 0; t < mesh_.size(); ++t) {
+        std::swap(mesh_.positions[3 * t + 1], mesh_.positions[3 * t + 2]);
+        if (!mesh_.normals.empty()) std::swap(mesh_.normals[3 * t + 1], mesh_.normals[3 * t + 2]);
+        if (!mesh_.uvs.empty()) std::swap(mesh_.uvs[3 * t + 1], mesh_.uvs[3 * t + 2]);
+    }
 }
 
 // ---------------------------------------------------------------- instances, serialized meshes, cylinders
@@ -1590,7 +1620,7 @@ void Importer::emitter(xml_node n) {
                 finish(p);
                 const std::string file = file_path(n, name);
                 inputs_.push_back(file);
-                environment_ = Environment::from_map(read_exr_rgb(file), glm::mat3(xf), scale, file);
+                environment_ = Environment::from_map(read_exr_rgb(file), glm::mat3(mirror_ * xf), scale, file);
             }
         } catch (const InputError& e) {
             // Errors of the map or its values, placed at the element.
@@ -1632,9 +1662,12 @@ SceneFile Importer::run() {
         }
         index_ids(n);
     }
+    // The sensor first: a mirroring one reflects everything after it.
+    for (xml_node n : top)
+        if (std::string(n.name()) == "sensor") sensor(n);
     for (xml_node n : top) {
         const std::string tag = n.name();
-        if (tag == "sensor") sensor(n);
+        if (tag == "sensor") continue;
         else if (tag == "integrator") integrator(n);
         else if (tag == "shape") shape(n);
         else if (tag == "bsdf") bsdf(n);
@@ -1658,6 +1691,7 @@ SceneFile Importer::run() {
                                      grouped_report(warnings_, false)));
     }
 
+    if (mirrored_) mirror_world();
     SceneFile sf;
     sf.path = path_;
     Camera camera;
