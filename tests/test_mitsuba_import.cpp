@@ -227,9 +227,13 @@ TEST_CASE("mitsuba import: every shared Mitsuba scene loads or names what it lac
         try {
             load_mitsuba_scene(path.string(), o);
         } catch (const InputError& e) {
-            // Not loading strictly is fine only when the report names what is unsupported or missing.
+            // Not loading strictly is fine only when the report names what is
+            // unsupported or missing; the two scenes of only supported
+            // elements must load.
             strict = e.what();
             CHECK_THAT(strict, Catch::Contains("--lenient") || Catch::Contains("every emitter was dropped"));
+            CHECK(name != "living-room");
+            CHECK(name != "veach-bidir");
         }
         o.lenient = true;
         std::string lenient = "renders";
@@ -291,4 +295,31 @@ TEST_CASE("mitsuba import: a mirroring sensor to_world shows the world mirrored"
         };
         CHECK(facing(pa, t, Vec3(0.37f, 0.1f, 5.f)) == facing(pb, t, Vec3(0.37f, 0.1f, 5.f)));
     }
+}
+
+TEST_CASE("mitsuba import: max_smooth_angle on OBJ and PLY meshes makes creases sharper than the angle", "[mitsuba]") {
+    XmlScene s;
+    std::string obj;
+    for (int i = 0; i < 8; ++i) obj += fmt::format("v {} {} {}\n", i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1);
+    // A cube of 8 shared vertices wound outwards, without normals.
+    obj += "f 1 3 4\nf 1 4 2\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 7 8\nf 3 8 4\nf 1 5 7\nf 1 7 3\nf 2 4 8\nf 2 8 6\n";
+    s.write("cube.obj", obj);
+    const auto load = [&](const std::string& extra) {
+        return s.load(R"(<shape type="obj"><string name="filename" value="cube.obj"/>)" + extra + "</shape>");
+    };
+    const auto all_faceted = [](const TriangleMesh& m) {
+        for (size_t t = 0; t < m.size(); ++t) {
+            const Vec3 g = glm::normalize(glm::cross(m.positions[3 * t + 1] - m.positions[3 * t], m.positions[3 * t + 2] - m.positions[3 * t]));
+            for (int k = 0; k < 3; ++k)
+                if (glm::length(glm::normalize(m.normals[3 * t + k]) - g) > 1e-5f) return false;
+        }
+        return true;
+    };
+    CHECK(all_faceted(load(R"(<float name="maxSmoothAngle" value="30"/>)").scene->mesh()));
+    // The cube's edges are 90 degrees: at 100 every corner is smooth again; without the property too.
+    CHECK_FALSE(all_faceted(load(R"(<float name="maxSmoothAngle" value="100"/>)").scene->mesh()));
+    CHECK_FALSE(all_faceted(load("").scene->mesh()));
+    CHECK_THAT(s.error(R"(<shape type="obj"><string name="filename" value="cube.obj"/><boolean name="faceNormals" value="true"/>
+        <float name="maxSmoothAngle" value="30"/></shape>)"),
+               Catch::Contains("either face_normals or max_smooth_angle"));
 }

@@ -452,6 +452,7 @@ private:
                         uint32_t material);
     // ---- serialized meshes and the cylinder (mitsuba_shapes.cpp has their geometry)
     const SerializedFile& serialized_file(const std::string& file);
+    void crease_normals(size_t first_triangle, float max_smooth_angle);
     void add_indexed(detail::IndexedMesh m, const Mat4& xf, bool flip, bool face_normals, float max_smooth_angle,
                      uint32_t material, const std::string& label);
 
@@ -1323,6 +1324,20 @@ void Importer::load_ply_shape(xml_node n, const std::string& file, bool face_nor
     add_triangles(p, std::move(nrm), uv, xf, flip, material, file);
 }
 
+// Mitsuba's max_smooth_angle on the triangles from `first` on, in world space
+// as Mitsuba rebuilds a loaded mesh: their normals are replaced by those of
+// the crease-angle rebuild (corners of one position and uv are one vertex).
+void Importer::crease_normals(size_t first, float max_smooth_angle) {
+    detail::IndexedMesh m;
+    m.positions.assign(mesh_.positions.begin() + std::ptrdiff_t(3 * first), mesh_.positions.end());
+    if (!mesh_.uvs.empty()) m.uvs.assign(mesh_.uvs.begin() + std::ptrdiff_t(3 * first), mesh_.uvs.end());
+    m.indices.resize(m.positions.size());
+    for (size_t i = 0; i < m.indices.size(); ++i) m.indices[i] = uint32_t(i);
+    detail::rebuild_with_crease_angle(m, max_smooth_angle);
+    mesh_.normals.resize(mesh_.positions.size());
+    for (size_t c = 0; c < m.indices.size(); ++c) mesh_.normals[3 * first + c] = m.normals[m.indices[c]];
+}
+
 // ---------------------------------------------------------------- the mirrored sensor
 
 // The triangles reflected by mirror_, each with two corners swapped so that
@@ -1478,10 +1493,11 @@ void Importer::shape(xml_node n, const Mat4& outer) {
         const bool face_normals = get_bool(p, "face_normals", false);
         const bool flip_uv = type == "obj" ? get_bool(p, "flip_tex_coords", true) : true;
         ignore(p, {"collapse"});
-        if (p.named.count("max_smooth_angle")) {
-            unsupported(p.named.at("max_smooth_angle"), "max_smooth_angle", "keeps the mesh's own normals");
-            take(p, "max_smooth_angle");
-        }
+        bool angle_given = false;
+        const float angle = get_float(p, "max_smooth_angle", 0.f, &angle_given);
+        if (angle_given && face_normals) fail(n, "give either face_normals or max_smooth_angle, not both (as Mitsuba)");
+        if (angle_given && !(angle >= 0.f && angle <= 180.f))
+            fail(p.named.at("max_smooth_angle"), "max_smooth_angle must lie in [0, 180] degrees");
         finish(p);
         const std::string file = file_path(n, name);
         if (const std::string why = detail::not_a_file(file); !why.empty()) {
@@ -1491,8 +1507,10 @@ void Importer::shape(xml_node n, const Mat4& outer) {
             return;
         }
         const uint32_t mat = material_for(b, radiance, id, n);
+        const size_t first = mesh_.size();
         if (type == "obj") load_obj_shape(n, file, face_normals, flip_uv, xf, flip, mat);
         else load_ply_shape(n, file, face_normals, xf, flip, mat);
+        if (angle_given) crease_normals(first, angle);
         return;
     }
     if (type == "serialized") {
