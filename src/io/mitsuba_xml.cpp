@@ -200,7 +200,12 @@ private:
             s += " in " + describe(p);
         return s;
     }
-    [[noreturn]] void fail(xml_node n, const std::string& msg) const { throw InputError(where(n) + ": " + msg); }
+    // An error that stops the load; the unsupported elements met before it follow its message.
+    [[noreturn]] void fail(xml_node n, const std::string& msg) const {
+        std::string m = where(n) + ": " + msg;
+        if (!strict_errors_.empty()) m += "\nbefore it:\n" + grouped_report(strict_errors_, true);
+        throw InputError(m);
+    }
     void warn(xml_node n, const std::string& msg) { warnings_.push_back({where(n), msg}); }
     // An element gdr does not support: an error, or with --lenient one warning
     // saying what happens instead. Either way the caller then does that, so
