@@ -305,7 +305,7 @@ TEST_CASE("mitsuba import: a mirroring sensor to_world shows the world mirrored"
     }
 }
 
-TEST_CASE("mitsuba import: max_smooth_angle on OBJ and PLY meshes makes creases sharper than the angle", "[mitsuba]") {
+TEST_CASE("mitsuba import: max_smooth_angle on an OBJ mesh makes creases sharper than the angle", "[mitsuba]") {
     XmlScene s;
     std::string obj;
     for (int i = 0; i < 8; ++i) obj += fmt::format("v {} {} {}\n", i & 1 ? 1 : -1, i & 2 ? 1 : -1, i & 4 ? 1 : -1);

@@ -473,7 +473,7 @@ private:
     std::map<const void*, std::shared_ptr<Texture>> textures_;
     std::map<const void*, std::shared_ptr<Texture>> opacities_;  // of a <texture> used as a mask's opacity
     std::set<const void*> building_;  // BSDFs and textures being built (a ref cycle guard)
-    std::vector<std::pair<std::string, std::string>> warnings_;       // (where, what) of each --lenient warning
+    std::vector<std::pair<std::string, std::string>> warnings_;       // (where, what) of each warning
     std::vector<std::pair<std::string, std::string>> strict_errors_;  // (where, what) of each unsupported element
     int shape_elements_ = 0, emitter_elements_ = 0;                   // as written in the scene
     std::vector<std::string> inputs_;
