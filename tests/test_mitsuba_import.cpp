@@ -122,6 +122,9 @@ TEST_CASE("mitsuba import: dropping every shape or every emitter is an error in 
         CHECK_THAT(lights, Catch::Contains("sun and sky emitters"));
         if (lenient) CHECK_THAT(lights, Catch::Contains("every emitter was dropped (1 <emitter> element)"));
     }
+    // An emitter dropped with its shape counts too.
+    CHECK_THAT(s.error(R"(<shape type="hair"><emitter type="area"/></shape><shape type="rectangle"/>)", true),
+               Catch::Contains("every emitter was dropped (1 <emitter> element)"));
     // A scene that declares no emitter at all is the author's choice: it loads.
     CHECK_NOTHROW(s.load(R"(<shape type="rectangle"/>)"));
     // One light of two dropped is a warning only.
@@ -187,6 +190,7 @@ TEST_CASE("mitsuba import: cylinders lie on their surface, face outwards and hav
         }
     }
     // The inscribed prism's area: 2 pi r h sin(pi/128)/(pi/128), within 1e-4 of the true one.
+    // (Wound inwards, the cylinder failed the facing check above on all 768 corners.)
     CHECK(area == Approx(2.0 * 3.14159265358979 * 0.5 * 3.0).epsilon(1e-3));
 }
 

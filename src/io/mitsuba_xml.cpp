@@ -1442,6 +1442,7 @@ void Importer::shape(xml_node n, const Mat4& outer) {
     if (type == "instance") return instance(n, outer);
     if (!kTypes.count(type)) {
         unsupported(n, "unsupported shape type '" + type + "'", "skips it");
+        for (xml_node c : n.children()) emitter_elements_ += std::string(c.name()) == "emitter";  // dropped with it
         return;
     }
     Props p = props(n);
