@@ -185,7 +185,8 @@ void SerializedFile::index() {
     for (size_t i = 0; i < count; ++i) {
         const unsigned char* e = b + dict + entry * i;
         offsets_[i] = entry == 8 ? le64(e) : le32(e);
-        const bool ok = offsets_[i] + 4 <= dict && (i == 0 ? offsets_[i] == 0 : offsets_[i] > offsets_[i - 1]) &&
+        // (offset <= dict - 4, not offset + 4 <= dict: a huge offset would wrap around.)
+        const bool ok = offsets_[i] <= dict - 4 && (i == 0 ? offsets_[i] == 0 : offsets_[i] > offsets_[i - 1]) &&
                         le16(b + offsets_[i]) == kMagic && le16(b + offsets_[i] + 2) == version_;
         if (!ok)
             throw InputError(fmt::format("{}: corrupt shape index: the dictionary at the end of the file gives mesh {} "
