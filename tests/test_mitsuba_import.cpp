@@ -330,7 +330,25 @@ TEST_CASE("mitsuba import: max_smooth_angle on an OBJ mesh makes creases sharper
     CHECK(all_faceted(load(R"(<float name="maxSmoothAngle" value="30"/>)").scene->mesh()));
     // The cube's edges are 90 degrees: at 100 every corner is smooth again; without the property too.
     CHECK_FALSE(all_faceted(load(R"(<float name="maxSmoothAngle" value="100"/>)").scene->mesh()));
-    CHECK_FALSE(all_faceted(load("").scene->mesh()));
+    // Without it, Mitsuba's angle-weighted normals: a cube's corners point along its diagonals
+    // (weighting by area instead tilts the corners shared by two triangles of a face).
+    const SceneFile plain = load("");
+    CHECK_FALSE(all_faceted(plain.scene->mesh()));
+    for (size_t c = 0; c < 36; ++c)
+        CHECK(glm::length(glm::normalize(plain.scene->mesh().normals[c]) -
+                          glm::sign(plain.scene->mesh().positions[c]) / std::sqrt(3.f)) < 1e-5f);
+    // A uv seam splits the normals, as Mitsuba's OBJ vertices are (position, uv) pairs: a
+    // roof of two faces at 90 degrees, sharing its ridge's positions but not their uvs.
+    s.write("roof.obj", "v -1 0 0\nv 0 1 0\nv 0 1 1\nv -1 0 1\nv 1 0 0\nv 1 0 1\n"
+                        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5 0.5\nvt 0.2 0.2\n"
+                        "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\nf 2/5 5/1 6/4\nf 2/5 6/4 3/6\n");
+    const SceneFile roof = s.load(R"(<shape type="obj"><string name="filename" value="roof.obj"/></shape>)");
+    CHECK(all_faceted(roof.scene->mesh()));  // (keyed by position alone, the ridge was smoothed: this failed)
+    s.write("roof1.obj", "v -1 0 0\nv 0 1 0\nv 0 1 1\nv -1 0 1\nv 1 0 0\nv 1 0 1\n"
+                         "f 1 2 3\nf 1 3 4\nf 2 5 6\nf 2 6 3\n");
+    const SceneFile joined = s.load(R"(<shape type="obj"><string name="filename" value="roof1.obj"/></shape>)");
+    // Without uvs the ridge's corners are shared: their normal bisects the two faces'.
+    CHECK(std::abs(glm::normalize(joined.scene->mesh().normals[1]).y) > 1.f - 1e-5f);
     CHECK_THAT(s.error(R"(<shape type="obj"><string name="filename" value="cube.obj"/><boolean name="faceNormals" value="true"/>
         <float name="maxSmoothAngle" value="30"/></shape>)"),
                Catch::Contains("either face_normals or max_smooth_angle"));

@@ -1239,13 +1239,9 @@ void Importer::add_triangles(const std::vector<Vec3>& p, std::vector<Vec3> nrm, 
 // Per-corner vertex normals that Mitsuba computes for a mesh without any:
 // each vertex's normal is the area-weighted mean of its faces' normals.
 std::vector<Vec3> smooth_normals(const std::vector<Vec3>& pos, const std::vector<uint32_t>& idx) {
-    std::vector<Vec3> acc(pos.size(), Vec3(0.f));
-    for (size_t t = 0; t + 2 < idx.size(); t += 3) {
-        const Vec3 n = glm::cross(pos[idx[t + 1]] - pos[idx[t]], pos[idx[t + 2]] - pos[idx[t]]);
-        for (int k = 0; k < 3; ++k) acc[idx[t + k]] += n;
-    }
+    const std::vector<Vec3> vn = detail::angle_weighted_normals(pos, idx);  // Mitsuba's weights
     std::vector<Vec3> out(idx.size());
-    for (size_t i = 0; i < idx.size(); ++i) out[i] = acc[idx[i]];
+    for (size_t i = 0; i < idx.size(); ++i) out[i] = vn[idx[i]];
     return out;
 }
 
@@ -1280,7 +1276,6 @@ void Importer::load_obj_shape(xml_node n, const std::string& file, bool face_nor
     const size_t nv = a.vertices.size() / 3;
     std::vector<Vec3> pos(nv), p, nrm;
     std::vector<Vec2> uv;
-    std::vector<uint32_t> idx;
     for (size_t i = 0; i < nv; ++i) pos[i] = Vec3(a.vertices[3 * i], a.vertices[3 * i + 1], a.vertices[3 * i + 2]);
     bool all_n = !face_normals;
     for (const auto& sh : reader.GetShapes())
@@ -1288,7 +1283,6 @@ void Importer::load_obj_shape(xml_node n, const std::string& file, bool face_nor
             if (c.vertex_index < 0 || size_t(c.vertex_index) >= nv) fail(n, file + ": a face references a missing vertex");
             if (!is_finite(pos[c.vertex_index]))
                 fail(n, fmt::format("{}: vertex {} is not a finite number", file, c.vertex_index + 1));
-            idx.push_back(uint32_t(c.vertex_index));
             p.push_back(pos[c.vertex_index]);
             if (c.normal_index >= 0 && size_t(3 * c.normal_index + 2) < a.normals.size())
                 nrm.emplace_back(a.normals[3 * c.normal_index], a.normals[3 * c.normal_index + 1],
@@ -1303,8 +1297,22 @@ void Importer::load_obj_shape(xml_node n, const std::string& file, bool face_nor
                 uv.emplace_back(0.f);
             }
         }
-    if (face_normals) nrm.clear();
-    else if (!all_n) nrm = smooth_normals(pos, idx);  // as Mitsuba, when some corner has none
+    if (face_normals) {
+        nrm.clear();
+    } else if (!all_n) {
+        // As Mitsuba, when some corner has none: its OBJ vertices are the
+        // distinct (position, uv) values, so a uv seam splits the normals.
+        std::map<std::array<float, 5>, uint32_t> ids;
+        std::vector<Vec3> kp;
+        std::vector<uint32_t> kidx;
+        for (size_t c = 0; c < p.size(); ++c) {
+            const auto [it, fresh] = ids.emplace(std::array<float, 5>{p[c].x, p[c].y, p[c].z, uv[c].x, uv[c].y},
+                                                 uint32_t(kp.size()));
+            if (fresh) kp.push_back(p[c]);
+            kidx.push_back(it->second);
+        }
+        nrm = smooth_normals(kp, kidx);
+    }
     add_triangles(p, std::move(nrm), uv, xf, flip, material, file);
 }
 
