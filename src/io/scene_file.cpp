@@ -92,6 +92,9 @@ Vec3 get_vec3(const std::string& file, const json& j, const std::string& key) {
 }
 
 
+/// Deepest nesting of objects and arrays a JSON scene, camera or animation file may have.
+constexpr size_t kMaxJsonDepth = 100;
+
 // Parses a JSON file. A key given twice in one object is an error: the parser
 // would keep only the last value, silently dropping a setting the user wrote.
 json parse_json_file(const std::string& file) {
@@ -108,6 +111,11 @@ json parse_json_file(const std::string& file) {
         switch (event) {
         case json::parse_event_t::object_start:
         case json::parse_event_t::array_start: {
+            // Each level keeps its key path, so a hostile depth (10^6 nested arrays) would take
+            // time and memory quadratic in it; no scene nests more than a few levels.
+            if (open.size() >= kMaxJsonDepth)
+                throw InputError(file + ": objects and arrays nest more than " + std::to_string(kMaxJsonDepth) +
+                                 " deep" + (open.back().path.empty() ? "" : " (in '" + open.back().path.substr(0, 60) + "...')"));
             std::string path;
             if (!open.empty()) {
                 const Open& outer = open.back();
