@@ -148,7 +148,7 @@ std::string read_file_text(const std::string& file) {
     // One read of the whole size: meshes run to tens of megabytes, which a
     // character-wise copy takes a noticeable part of the load to read. A file
     // that grows meanwhile (or reports no size, as /proc does) is read to its end.
-    std::string text(size_t(st.st_size), '\0');
+    std::string text(size_t(st.st_size) + 1, '\0');  // + 1: the end is seen without growing the buffer
     size_t got = 0;
     for (;;) {
         if (got == text.size()) text.resize(std::max<size_t>(4096, 2 * text.size()));
