@@ -36,6 +36,7 @@
 #include <thread>
 #include <vector>
 
+#include "gdr/core/cancel.h"
 #include "gdr/core/error.h"
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
@@ -137,10 +138,20 @@ void set_param(gdr::Params& p, const std::string& key, const py::handle& v) {
                              std::string(py::str(py::type::of(v).attr("__name__"))));
 }
 
+/// The name of `obj`'s type, for messages.
+std::string type_name(const py::handle& obj) { return py::str(py::type::of(obj).attr("__name__")); }
+
+/// `obj` as a dict; TypeError naming `what` for any other type (a cast would
+/// raise a RuntimeError that names neither the argument nor the type).
+py::dict as_dict(const py::handle& obj, const std::string& what) {
+    if (!py::isinstance<py::dict>(obj)) throw py::type_error(what + " must be a dict, got " + type_name(obj));
+    return py::reinterpret_borrow<py::dict>(obj);
+}
+
 /// The keys and values of a Python mapping (or None) added to `p`.
 void add_params(gdr::Params& p, const py::handle& mapping) {
     if (mapping.is_none()) return;
-    for (const auto& [k, v] : py::cast<py::dict>(mapping)) set_param(p, py::str(k), v);
+    for (const auto& [k, v] : as_dict(mapping, p.context() + ": params")) set_param(p, py::str(k), v);
 }
 
 /// A Params' values as a Python dict.
@@ -169,7 +180,7 @@ std::shared_ptr<PyScene> load_scene(const fs::path& path, const py::object& defi
     gdr::SceneFileOptions options;
     options.lenient = lenient;
     if (!defines.is_none())
-        for (const auto& [k, v] : py::cast<py::dict>(defines)) {
+        for (const auto& [k, v] : as_dict(defines, "load_scene: defines")) {
             // As the command line's -D name=value: text, with Python's booleans spelt as XML's.
             options.defines[py::str(k)] =
                 PyBool_Check(v.ptr()) ? std::string(v.cast<bool>() ? "true" : "false") : std::string(py::str(v));
@@ -215,6 +226,8 @@ py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std
                   std::optional<long long> spp, std::optional<long long> seed, int threads, const py::object& params,
                   const py::object& progress, double time, long long first_sample, double adaptive,
                   double select_gradients) {
+    // pybind11 passes None as an empty pointer.
+    if (!scene) throw py::type_error("render: scene must be a gdr.Scene (from gdr.load_scene), got None");
     const gdr::SceneFile& sf = scene->sf;
     if (!(select_gradients == 0.0 || (select_gradients > 0.0 && select_gradients <= 0.5)))
         throw gdr::ParameterError("render: select_gradients is the pilots' share of the budget, above 0 and at most "
@@ -347,11 +360,46 @@ py::array_t<float> reconstruct(const py::object& primal, const py::object& dx, c
     f.dy = to_image(dy, "reconstruct: dy");
     if (!direct.is_none()) f.direct = to_image(direct, "reconstruct: direct");
     auto r = gdr::reconstructor_registry().create(method, p);
+    // As render: the solve runs on a thread of its own, and this one checks
+    // for signals every kPollSeconds; Ctrl-C stops the solve between two of
+    // its iterations (gdr::CancelScope) and is raised once it has stopped.
     gdr::Image out;
+    std::exception_ptr error;
+    std::optional<py::error_already_set> raised;
+    std::atomic<bool> abort{false};
     {
         py::gil_scoped_release nogil;
-        out = r->reconstruct(f.buffers());
+        std::mutex mutex;
+        std::condition_variable finished_cv;
+        bool finished = false;
+        std::thread worker([&] {
+            try {
+                const gdr::CancelScope scope(&abort);
+                out = r->reconstruct(f.buffers());
+            } catch (...) {
+                error = std::current_exception();
+            }
+            const std::lock_guard<std::mutex> lock(mutex);
+            finished = true;
+            finished_cv.notify_all();
+        });
+        for (bool done = false; !done;) {
+            {
+                std::unique_lock<std::mutex> lock(mutex);
+                finished_cv.wait_for(lock, std::chrono::duration<double>(kPollSeconds), [&] { return finished; });
+                done = finished;
+            }
+            if (done || raised) continue;
+            py::gil_scoped_acquire gil;
+            if (PyErr_CheckSignals() != 0) {
+                raised.emplace();
+                abort = true;
+            }
+        }
+        worker.join();
     }
+    if (raised) throw std::move(*raised);
+    if (error) std::rethrow_exception(error);
     return to_array(std::move(out));
 }
 
@@ -371,7 +419,7 @@ py::object read_exr(const fs::path& path) {
 /// gdr.write_exr: writes the layers and metadata as one multi-layer EXR.
 void write_exr(const fs::path& path, const py::object& layers, const py::object& metadata) {
     gdr::FrameBuffer fb;
-    const py::dict d = py::cast<py::dict>(layers);
+    const py::dict d = as_dict(layers, "write_exr: layers");
     if (d.size() == 0) throw gdr::ParameterError(path.string() + ": write_exr needs at least one layer");
     for (const auto& [k, v] : d) {
         const std::string name = py::str(k);
@@ -384,7 +432,7 @@ void write_exr(const fs::path& path, const py::object& layers, const py::object&
     py::object meta = metadata;
     if (meta.is_none() && py::hasattr(layers, "metadata")) meta = layers.attr("metadata");
     if (!meta.is_none())
-        for (const auto& [k, v] : py::cast<py::dict>(meta)) fb.metadata()[py::str(k)] = py::str(v);
+        for (const auto& [k, v] : as_dict(meta, "write_exr: metadata")) fb.metadata()[py::str(k)] = py::str(v);
     try {
         py::gil_scoped_release nogil;
         gdr::write_exr(path.string(), fb);

@@ -143,3 +143,18 @@ TEST_CASE("ply: malformed files are errors naming the file and the problem", "[p
                             "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n3 0 1 2\n"),
                Catch::Contains("before the vertex element"));
 }
+
+TEST_CASE("ply: element counts beyond the file are errors, elements without properties are skipped", "[ply][errors]") {
+    const std::string head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                             "element face 1\nproperty list uchar int vertex_indices\n";
+    const std::string body = "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    // 10^12 items of nothing: this looped for ever before such elements were skipped.
+    const PlyMesh m = parse_ply(head + "element junk 1000000000000\n" + body, "empty-items.ply");
+    CHECK(m.indices.size() == 3);
+    // 10^12 items of one byte or more cannot fit: refused before any loop.
+    CHECK_THAT(error_of_ply(head + "element junk 1000000000000\nproperty uchar j\n" + body),
+               Catch::Contains("test.ply") && Catch::Contains("line 9") &&
+                   Catch::Contains("declares 1000000000000 items"));
+    CHECK_THAT(error_of_ply(head + "element junk 18446744073709551615\nproperty uchar j\n" + body),
+               Catch::Contains("declares 18446744073709551615 items"));
+}

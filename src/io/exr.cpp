@@ -135,6 +135,28 @@ std::map<std::string, std::string> header_metadata(const Imf::Header& header) {
     return out;
 }
 
+/// Size (bytes) of the EXR at `path`; InputError naming it unless it is a
+/// regular file (OpenEXR would block for ever opening a FIFO, and read a
+/// device until memory runs out).
+uintmax_t exr_file_size(const std::string& path) {
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (!std::filesystem::exists(st)) throw InputError(path + ": EXR file not found");
+    if (std::filesystem::is_directory(st)) throw InputError(path + ": not a file (it is a directory)");
+    if (!std::filesystem::is_regular_file(st)) throw InputError(path + ": not a file");
+    return std::filesystem::file_size(path, ec);
+}
+
+/// Largest ratio of decoded float bytes to file bytes that read_exr accepts
+/// above kExrFreeBytes. zlib, which ZIP and PXR24 use, compresses at most
+/// about 1032:1, doubled when half channels are decoded to float; the margin
+/// admits PIZ and DWA files of flat colour. A damaged header that declares
+/// a data window of 10^12 pixels in a file of a few kilobytes is refused
+/// before its pixels are allocated.
+constexpr uintmax_t kExrMaxExpansion = 16384;
+/// Decoded size (bytes) read_exr allocates whatever the file size.
+constexpr uintmax_t kExrFreeBytes = uintmax_t(256) << 20;
+
 }  // namespace
 
 void write_exr(const std::string& path, const FrameBuffer& fb) {
@@ -188,7 +210,7 @@ void write_exr(const std::string& path, const FrameBuffer& fb) {
 }
 
 FrameBuffer read_exr(const std::string& path) {
-    if (!std::filesystem::exists(path)) throw InputError(path + ": EXR file not found");
+    const uintmax_t file_bytes = exr_file_size(path);
     try {
         Imf::InputFile file(path.c_str());
         const Imf::Header& header = file.header();
@@ -206,6 +228,12 @@ FrameBuffer read_exr(const std::string& path) {
             names.emplace_back(it.name());
         }
         if (names.empty()) throw InputError(path + ": EXR has no channels");
+        const uintmax_t decoded = uintmax_t(w) * uintmax_t(h) * names.size() * sizeof(float);
+        if (decoded > kExrFreeBytes && decoded / kExrMaxExpansion > file_bytes)
+            throw InputError(path + ": the header declares " + std::to_string(w) + "x" + std::to_string(h) + " pixels of " +
+                             std::to_string(names.size()) + " channels (" + std::to_string(decoded >> 20) +
+                             " MiB), more than a file of " + std::to_string(file_bytes) +
+                             " bytes can hold (a damaged header?)");
 
         auto groups = group_channels(names, path);
         // Restore the writer's layer order where recorded; unknown layers keep
@@ -255,7 +283,7 @@ FrameBuffer read_exr(const std::string& path) {
 }
 
 ExrHeader read_exr_header(const std::string& path) {
-    if (!std::filesystem::exists(path)) throw InputError(path + ": EXR file not found");
+    exr_file_size(path);
     try {
         // The header alone: Imf::InputFile reads no pixels until asked to.
         Imf::InputFile file(path.c_str());

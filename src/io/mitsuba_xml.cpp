@@ -14,9 +14,11 @@
 #include <cmath>
 #include <deque>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include <fmt/core.h>
 #include <glm/gtc/matrix_transform.hpp>
@@ -24,6 +26,7 @@
 #include <tiny_obj_loader.h>
 
 #include "gdr/core/error.h"
+#include "gdr/scene/coordinates.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/mitsuba_serialized.h"
 #include "gdr/io/ply.h"
@@ -78,6 +81,13 @@ constexpr NamedIor kIors[] = {
 
 /// GGX alpha that stands in for the delta coating of Mitsuba's smooth plastic.
 constexpr float kSmoothPlasticAlpha = 0.01f;
+/// Largest magnitude of a value read (all are stored as float).
+constexpr double kMaxFloat = std::numeric_limits<float>::max();
+/// Deepest element nesting, and longest chain of nested or referenced BSDFs and
+/// textures, that a scene may have. The importer recurses over both, so a
+/// hostile file (32,000 nested elements) would overflow the stack; real scenes
+/// nest about ten deep.
+constexpr int kMaxNesting = 100;
 /// Triangulation of spheres (as the shared scenes' converted OBJs) and disks.
 constexpr int kSphereSegments = 64, kSphereRings = 32, kDiskSegments = 64;
 /// Quads around a cylinder: its chords lie within r (1 - cos(pi / 128)) =
@@ -259,8 +269,9 @@ private:
         if (first < last && *first == '+') ++first;
         double v = 0.0;
         const auto r = std::from_chars(first, last, v);
-        if (first == last || r.ec != std::errc() || r.ptr != last || !std::isfinite(v))
-            fail(n, what + " must be a finite number, got '" + text + "'");
+        // Every value is stored as a float: 1e39 would become Inf.
+        if (first == last || r.ec != std::errc() || r.ptr != last || !(std::abs(v) <= kMaxFloat))
+            fail(n, what + " must be a finite number within float range (|x| <= 3.4e38), got '" + text + "'");
         return v;
     }
     std::vector<double> numbers(xml_node n, const std::string& text, const std::string& what) const {
@@ -516,6 +527,17 @@ void Importer::load_doc(const std::string& file, xml_node from) {
         const int line = int(std::upper_bound(d.line_starts.begin(), d.line_starts.end(), off) - d.line_starts.begin());
         throw InputError(fmt::format("{}:{}: malformed XML: {}", file, line, r.description()));
     }
+    // Depth first without recursion: the importer's own walks recurse, so the depth is bounded here first.
+    std::vector<std::pair<xml_node, int>> stack{{d.xml.document_element(), 1}};
+    while (!stack.empty()) {
+        const auto [e, depth] = stack.back();
+        stack.pop_back();
+        if (depth > kMaxNesting)
+            throw InputError(fmt::format("{}:{}: <{}> is nested {} elements deep, more than the {} gdr reads", file,
+                                         line_of(e), e.name(), depth, kMaxNesting));
+        for (xml_node c = e.first_child(); c; c = c.next_sibling())
+            if (c.type() == pugi::node_element) stack.emplace_back(c, depth + 1);
+    }
     inputs_.push_back(file);
     const xml_node scene = d.xml.document_element();
     if (std::string(scene.name()) != "scene")
@@ -698,6 +720,10 @@ Mat4 Importer::transform_of(xml_node t, bool* nine) {
                 return Vec3(float(v[0]), float(v[1]), float(v[2]));
             };
             const Vec3 o = vec("origin", true), target = vec("target", true), up = vec("up", false);
+            // Farther, |target - origin| overflows and the message below would blame the up vector.
+            for (const auto& [a, v] : {std::pair<const char*, Vec3>{"origin", o}, {"target", target}})
+                if (!within_coordinate_range(v))
+                    fail(c, fmt::format("'{}' ({}, {}, {}) is beyond +-{:g} on an axis", a, v.x, v.y, v.z, kMaxCoordinate));
             const Vec3 d = target - o;
             if (!(glm::length(d) > 0.f)) fail(c, "origin and target coincide");
             const Vec3 dir = glm::normalize(d);
@@ -780,6 +806,8 @@ std::shared_ptr<BuiltBsdf> Importer::bsdf(xml_node n) {
     }
     const auto it = bsdfs_.find(n.internal_object());
     if (it != bsdfs_.end()) return it->second;
+    if (building_.size() >= size_t(kMaxNesting))
+        fail(n, fmt::format("BSDFs and textures nest (or refer on) more than {} deep", kMaxNesting));
     if (!building_.insert(n.internal_object()).second) fail(n, "refers to itself");
     auto b = build_bsdf(n);
     building_.erase(n.internal_object());
@@ -923,6 +951,8 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
 std::shared_ptr<Texture> Importer::texture(xml_node n) {
     const auto it = textures_.find(n.internal_object());
     if (it != textures_.end()) return it->second;
+    if (building_.size() >= size_t(kMaxNesting))
+        fail(n, fmt::format("BSDFs and textures nest (or refer on) more than {} deep", kMaxNesting));
     if (!building_.insert(n.internal_object()).second) fail(n, "refers to itself");
     auto t = build_texture(n);
     building_.erase(n.internal_object());
@@ -1099,6 +1129,9 @@ void Importer::sensor(xml_node n) {
     const Vec3 left = Vec3(m * Vec4(1.f, 0.f, 0.f, 0.f));
     if (!(glm::length(fwd) > 0.f) || !(glm::length(up) > 0.f) || !is_finite(pos))
         fail(n, "to_world is degenerate");
+    if (!within_coordinate_range(pos))
+        fail(n, fmt::format("to_world places the camera at ({}, {}, {}), beyond +-{:g} on an axis", pos.x, pos.y, pos.z,
+                            kMaxCoordinate));
     // Mitsuba's camera x axis points left in the image; gdr's right is
     // cross(forward, up). A to_world that mirrors the image is rendered as
     // the mirror image of the world through the unmirrored camera: the
@@ -1220,6 +1253,10 @@ void Importer::add_triangles(const std::vector<Vec3>& p, std::vector<Vec3> nrm, 
         Vec2 w[3];
         for (int k = 0; k < 3; ++k) {
             q[k] = Vec3(xf * Vec4(p[t + k], 1.f));
+            if (!within_coordinate_range(q[k]))
+                throw InputError(fmt::format("{}: shape {}: vertex {} lies at ({}, {}, {}) after to_world, beyond "
+                                             "+-{:g} on an axis", path_, file, t + k, q[k].x, q[k].y, q[k].z,
+                                             kMaxCoordinate));
             n[k] = nrm.empty() ? Vec3(0.f) : nxf * nrm[t + k] * (flip ? -1.f : 1.f);
             w[k] = uv.empty() ? Vec2(0.f) : uv[t + k];
         }
@@ -1638,6 +1675,7 @@ void Importer::emitter(xml_node n) {
         try {
             if (type == "constant") {
                 const Color l = get_colour(p, "radiance", Color(1.f)) * scale;
+                if (!is_finite(l)) fail(n, "radiance times scale is beyond float range");
                 finish(p);
                 environment_ = Environment::constant(l);
             } else {

@@ -1,6 +1,11 @@
 // OBJ and MTL line checks (see obj_lines.h).
 #include "obj_lines.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <climits>
@@ -125,25 +130,35 @@ std::string not_a_file(const std::string& file) {
     return fs::exists(st) ? ": not a file" : ": file not found";
 }
 
-// The whole of a file, or an InputError naming it.
+// The whole of a file, or an InputError naming it. Only a regular file is
+// read: the file is opened without blocking and checked on the open
+// descriptor, so a FIFO swapped in after the name was checked cannot block
+// the reader, and a device (/dev/zero) cannot feed it until memory runs out.
 std::string read_file_text(const std::string& file) {
     if (const std::string why = not_a_file(file); !why.empty()) throw InputError(file + why);
-    std::ifstream in(file, std::ios::binary);
-    if (!in) throw InputError(file + ": cannot open: " + std::strerror(errno));
+    const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) throw InputError(file + ": cannot open: " + std::strerror(errno));
+    struct Close {
+        int fd;
+        ~Close() { ::close(fd); }
+    } close_fd{fd};
+    struct stat st {};
+    if (::fstat(fd, &st) != 0) throw InputError(file + ": cannot open: " + std::strerror(errno));
+    if (!S_ISREG(st.st_mode)) throw InputError(file + ": not a file");
     // One read of the whole size: meshes run to tens of megabytes, which a
-    // character-wise copy takes a noticeable part of the load to read.
-    std::string text;
-    in.seekg(0, std::ios::end);
-    const std::streamoff size = in.tellg();
-    in.seekg(0, std::ios::beg);
-    if (size > 0) {
-        text.resize(size_t(size));
-        in.read(text.data(), size);
-        text.resize(size_t(in.gcount()));
+    // character-wise copy takes a noticeable part of the load to read. A file
+    // that grows meanwhile (or reports no size, as /proc does) is read to its end.
+    std::string text(size_t(st.st_size) + 1, '\0');  // + 1: the end is seen without growing the buffer
+    size_t got = 0;
+    for (;;) {
+        if (got == text.size()) text.resize(std::max<size_t>(4096, 2 * text.size()));
+        const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) throw InputError(file + ": cannot read: " + std::strerror(errno));
+        if (n == 0) break;
+        got += size_t(n);
     }
-    // A file that grows meanwhile (or reports no size) is read to its end.
-    text.append(std::istreambuf_iterator<char>(in), {});
-    if (in.bad()) throw InputError(file + ": cannot read: " + std::strerror(errno));
+    text.resize(got);
     return text;
 }
 

@@ -210,6 +210,21 @@ PlyMesh parse_ply(const std::string& bytes, const std::string& name) {
     if (!ended) throw InputError(name + ": the header has no end_header line (truncated?)");
     if (!have_format) throw InputError(name + ": the header has no format line");
 
+    // An item of an element with properties takes at least one byte, so the
+    // counts are checked against the body before any loop or allocation: a
+    // header may declare 10^12 items in a file of a few bytes. (A shorter
+    // shortfall is left to the reader, whose message names the item cut off.)
+    const size_t body_bytes = bytes.size() - pos;
+    size_t need = 0;
+    for (const Element& e : elements) {
+        if (e.props.empty()) continue;  // an element without properties holds nothing to read
+        if (e.count > body_bytes - need)
+            throw InputError(name + ": line " + std::to_string(e.header_line) + ": element '" + e.name + "' declares " +
+                             std::to_string(e.count) + " items, more than the " + std::to_string(body_bytes) +
+                             " bytes after the header can hold (truncated, or a damaged header?)");
+        need += e.count;
+    }
+
     PlyMesh m;
     Body body(bytes, pos, format, name, line_no + 1);
     bool have_vertices = false, have_faces = false;
@@ -296,7 +311,7 @@ PlyMesh parse_ply(const std::string& bytes, const std::string& name) {
                     ++m.polygons;
                 }
             }
-        } else {
+        } else if (!e.props.empty()) {
             for (size_t k = 0; k < e.count; ++k) {
                 const std::string what = where_e + " " + std::to_string(k);
                 for (const Property& p : e.props) {

@@ -52,8 +52,12 @@ void check_keys(const std::string& file, const std::string& where, const json& o
         }
 }
 
+// True if the JSON number `j` is finite in float: 1e39 would be read as Inf.
+bool float_range(const json& j) { return std::abs(j.get<double>()) <= double(std::numeric_limits<float>::max()); }
+
 float get_number(const std::string& file, const json& j, const std::string& key) {
     if (!j.is_number()) fail(file, "'" + key + "' must be a number");
+    if (!float_range(j)) fail(file, "'" + key + "' must be a finite number within float range (|x| <= 3.4e38), got " + j.dump());
     return j.get<float>();
 }
 
@@ -78,12 +82,18 @@ bool get_bool(const std::string& file, const json& j, const std::string& key) {
 }
 
 Vec3 get_vec3(const std::string& file, const json& j, const std::string& key) {
-    if (j.is_number()) return Vec3(j.get<float>());
+    if (j.is_number()) return Vec3(get_number(file, j, key));
     if (!j.is_array() || j.size() != 3 || !j[0].is_number() || !j[1].is_number() || !j[2].is_number())
         fail(file, "'" + key + "' must be an array of 3 numbers");
+    for (const json& x : j)
+        if (!float_range(x))
+            fail(file, "'" + key + "' must hold finite numbers within float range (|x| <= 3.4e38), got " + j.dump());
     return Vec3(j[0].get<float>(), j[1].get<float>(), j[2].get<float>());
 }
 
+
+/// Deepest nesting of objects and arrays a JSON scene, camera or animation file may have.
+constexpr size_t kMaxJsonDepth = 100;
 
 // Parses a JSON file. A key given twice in one object is an error: the parser
 // would keep only the last value, silently dropping a setting the user wrote.
@@ -101,6 +111,11 @@ json parse_json_file(const std::string& file) {
         switch (event) {
         case json::parse_event_t::object_start:
         case json::parse_event_t::array_start: {
+            // Each level keeps its key path, so a hostile depth (10^6 nested arrays) would take
+            // time and memory quadratic in it; no scene nests more than a few levels.
+            if (open.size() >= kMaxJsonDepth)
+                throw InputError(file + ": objects and arrays nest more than " + std::to_string(kMaxJsonDepth) +
+                                 " deep" + (open.back().path.empty() ? "" : " (in '" + open.back().path.substr(0, 60) + "...')"));
             std::string path;
             if (!open.empty()) {
                 const Open& outer = open.back();
@@ -486,8 +501,13 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     tinyobj::ObjReader reader;
     if (const std::string why = mtl.empty() ? "" : not_a_file(mtl); !why.empty())
         throw InputError(scene_file + ": meshes[].mtl: " + mtl + why);
-    for (const std::string& lib : mtl.empty() ? libraries : std::vector<std::string>{mtl})
+    for (const std::string& lib : mtl.empty() ? libraries : std::vector<std::string>{mtl}) {
+        // The reader would open a FIFO or device itself and block, or read /dev/zero until memory runs out.
+        std::error_code ec;
+        if (fs::exists(lib, ec))
+            if (const std::string why = not_a_file(lib); !why.empty()) throw InputError(path + ": mtllib " + lib + why);
         check_material_lines(lib);
+    }
     // With a library of its own the OBJ is parsed from memory: tinyobjloader
     // then reads every `mtllib` from the given text instead of a file.
     bool parsed;
@@ -666,6 +686,8 @@ static bool is_mitsuba_xml(const std::string& path) {
 }
 
 SceneFile load_scene_file(const std::string& path, const SceneFileOptions& options) {
+    // Before the format sniffing below opens it: a FIFO would block it.
+    if (const std::string why = not_a_file(path); !why.empty()) throw InputError(path + why);
     std::error_code ec;
     if (!fs::is_directory(path, ec) && is_mitsuba_xml(path)) return load_mitsuba_scene(path, options);
     if (!options.defines.empty())

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <string>
 
+#include "gdr/core/cancel.h"
 #include "gdr/core/error.h"
 #include "multigrid.h"
 
@@ -685,6 +686,7 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
     // and a step along p would no longer decrease the energy.
     bool active[4] = {true, true, true, true};
     for (int it = 1; it <= opt.max_iterations; ++it) {
+        check_cancelled("reconstruction");  // a caller waiting on Ctrl-C (the Python module)
         float step[4] = {0, 0, 0, 0};
         for (int ch = 0; ch < C; ++ch) {
             const float a = float(rz[ch] / pq[ch]);

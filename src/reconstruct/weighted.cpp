@@ -86,7 +86,16 @@ struct Rows {
     std::vector<float> vp, vx, vy;           // guarded variances of the means (radiance^2); 0 on unused rows
     std::vector<float> wp, wx, wy;           // weights, 0 on unused and dropped rows (arbitrary common scale)
     std::vector<unsigned char> ux, uy;       // rows in use: not the dropped border
+    std::vector<unsigned char> fx, fy;       // rows flagged as outliers (the start point replaces their gradients)
 };
+
+/// How far (in units of the local radiance and noise scale) a gradient may lie
+/// from the primal's difference before it is dropped whatever its variance
+/// says. The z-test needs a variance estimate, which a pixel of one sample
+/// lacks and which a gradient of 1e10 with an ordinary variance does not
+/// reflect; such a row would otherwise drag the whole solve (float cannot
+/// even hold the image to within the noise once a value near 1e10 enters it).
+constexpr double kFarFactor = 1000.0;
 
 /// Channel-mean variance of the mean of each pixel of `var` (per-sample / spp).
 std::vector<float> mean_variance(const ImageView& var, const float* spp) {
@@ -166,6 +175,30 @@ Rows build_rows(const VarianceProblem& P, const WeightedOptions& o, WeightedRepo
         if (R.ux[k]) R.wx[k] = 1.f / vx[k];
         if (R.uy[k]) R.wy[k] = 1.f / vy[k];
     }
+    // Rows far outside what their neighbours and the primal allow are dropped in every mode.
+    R.fx.assign(n, 0), R.fy.assign(n, 0);
+    {
+        std::vector<float> level(n);
+        for (size_t k = 0; k < n; ++k) {
+            double a = 0;
+            for (int ch = 0; ch < C; ++ch) a += std::abs(double(P.primal.data[k * C + ch]));
+            level[k] = float(a / C);
+        }
+        const std::vector<float> local = box_mean(level, {}, w, h, 2);
+        auto far = [&](size_t k, size_t q, const float* g, float vg) {
+            const double scale = double(local[k]) + local[q] + std::sqrt(double(vg) + vp[k] + vp[q]);
+            for (int ch = 0; ch < C; ++ch) {
+                const double pk = P.primal.data[k * C + ch], pq = P.primal.data[q * C + ch];
+                const double d = std::abs(double(g[k * C + ch]) - (pq - pk));
+                if (!(d <= kFarFactor * (std::abs(pk) + std::abs(pq) + scale))) return true;
+            }
+            return false;
+        };
+        for (size_t k = 0; k < n; ++k) {
+            if (R.ux[k] && far(k, k + 1, P.dx.data, vx[k])) R.wx[k] = 0.f, R.fx[k] = 1, ++rep.outlier_rows;
+            if (R.uy[k] && far(k, k + size_t(w), P.dy.data, vy[k])) R.wy[k] = 0.f, R.fy[k] = 1, ++rep.outlier_rows;
+        }
+    }
     // Outlier test of each gradient row against the primal difference it estimates.
     if (o.outliers != OutlierMode::none) {
         const double tau2 = o.tau * o.tau;
@@ -182,8 +215,10 @@ Rows build_rows(const VarianceProblem& P, const WeightedOptions& o, WeightedRepo
         };
         for (size_t k = 0; k < n; ++k) {
             const size_t right = k + 1, down = k + size_t(w);
-            if (R.ux[k] && !unknown[k] && !unknown[right] && test(k, right, P.dx.data, vx[k], R.wx[k])) ++rep.outlier_rows;
-            if (R.uy[k] && !unknown[k] && !unknown[down] && test(k, down, P.dy.data, vy[k], R.wy[k])) ++rep.outlier_rows;
+            if (R.ux[k] && !R.fx[k] && !unknown[k] && !unknown[right] && test(k, right, P.dx.data, vx[k], R.wx[k]))
+                R.fx[k] = 1, ++rep.outlier_rows;
+            if (R.uy[k] && !R.fy[k] && !unknown[k] && !unknown[down] && test(k, down, P.dy.data, vy[k], R.wy[k]))
+                R.fy[k] = 1, ++rep.outlier_rows;
         }
     }
     // Tiles where the gradients are noisier than the primal's own differences keep the primal.
@@ -360,8 +395,25 @@ WeightedReport poisson_variance_weighted(const VarianceProblem& P, const Weighte
     const Rows R = build_rows(P, o, rep);
     const PoissonProblem prob{P.primal, P.dx, P.dy, 1.0};  // alpha 1: the colour weights carry the balance
     // Start: the exact unweighted solution with the reference's alpha, a
-    // good approximation wherever the weights are near uniform.
-    poisson_l2(PoissonProblem{P.primal, P.dx, P.dy, 0.2}, out);
+    // good approximation wherever the weights are near uniform, of the
+    // gradients with the outlier rows' replaced by the primal's difference:
+    // a start holding a gradient of 1e10 would end the CG (whose tolerance is
+    // relative to the start's residual) far from the solution.
+    ImageView dx0 = P.dx, dy0 = P.dy;
+    std::vector<float> cleaned_dx, cleaned_dy;
+    const auto clean = [&](const ImageView& g, const std::vector<unsigned char>& flag, size_t step,
+                           std::vector<float>& store, ImageView& view) {
+        if (std::none_of(flag.begin(), flag.end(), [](unsigned char f) { return f != 0; })) return;
+        store.assign(g.data, g.data + n * C);
+        for (size_t k = 0; k < n; ++k)
+            if (flag[k])
+                for (int ch = 0; ch < C; ++ch)
+                    store[k * C + ch] = P.primal.data[(k + step) * C + ch] - P.primal.data[k * C + ch];
+        view.data = store.data();
+    };
+    clean(P.dx, R.fx, 1, cleaned_dx, dx0);
+    clean(P.dy, R.fy, size_t(w), cleaned_dy, dy0);
+    poisson_l2(PoissonProblem{P.primal, dx0, dy0, 0.2}, out);
     CgOptions cg;
     cg.max_iterations = o.cg_iterations;
     cg.tolerance = o.tolerance;

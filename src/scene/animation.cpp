@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "gdr/core/error.h"
+#include "gdr/scene/coordinates.h"
 
 namespace gdr {
 
@@ -57,6 +60,10 @@ TransformValue TransformTrack::at(double t) const {
 Mat4 TransformTrack::matrix_at(double t) const { return keys.empty() ? Mat4(1.f) : at(t).matrix(); }
 
 CameraPose CameraPose::look_at(const Vec3& position, const Vec3& target, const Vec3& up) {
+    // As Camera's constructor: far-away points overflow the differences below.
+    for (const auto& [key, v] : {std::pair<const char*, Vec3>{"position", position}, {"target", target}, {"up", up}})
+        if (!within_coordinate_range(v))
+            throw ParameterError("camera: " + std::string(key) + " must be finite and within +-1e15 on every axis");
     const Vec3 f = target - position;
     if (!(glm::length(f) > 0.f)) throw ParameterError("camera: position and target coincide");
     const Vec3 fw = glm::normalize(f);

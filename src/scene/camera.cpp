@@ -1,6 +1,11 @@
 #include "gdr/scene/camera.h"
 
 #include "gdr/core/error.h"
+#include "gdr/scene/coordinates.h"
+
+#include <fmt/format.h>
+
+#include <utility>
 
 namespace gdr {
 
@@ -15,6 +20,12 @@ Camera::Camera(const CameraDesc& d) : desc_(d) {
     if (!(d.fov_deg > 0.f && d.fov_deg < 180.f))
         throw ParameterError("camera: fov must be in (0, 180) degrees, got " + std::to_string(d.fov_deg));
     if (d.fov_axis != 'x' && d.fov_axis != 'y') throw ParameterError("camera: fov_axis must be 'x' or 'y'");
+    // Far-away points would reach Embree as invalid rays (an assertion, not an error) and their
+    // differences would overflow, so that a wrong message would blame the up vector.
+    for (const auto& [key, v] : {std::pair<const char*, Vec3>{"position", d.position}, {"target", d.target}, {"up", d.up}})
+        if (!within_coordinate_range(v))
+            throw ParameterError(fmt::format("camera: {} ({}, {}, {}) must be finite and within +-{:g} on every axis",
+                                             key, v.x, v.y, v.z, kMaxCoordinate));
     const Vec3 f = d.target - d.position;
     if (!(glm::length(f) > 0.f)) throw ParameterError("camera: position and target coincide");
     forward_ = glm::normalize(f);

@@ -10,6 +10,9 @@
 #endif
 
 #include "gdr/core/error.h"
+#include "gdr/scene/coordinates.h"
+
+#include <fmt/format.h>
 
 namespace gdr {
 
@@ -60,8 +63,10 @@ SharedGeometry::SharedGeometry(const TriangleMesh& mesh, const std::string& orig
         throw InputError(origin + ": shared geometry needs three positions per triangle, and a triangle");
     for (size_t t = 0; t < mesh.size(); ++t) {
         const Vec3* p = &mesh.positions[3 * t];
-        if (!is_finite(p[0]) || !is_finite(p[1]) || !is_finite(p[2]) || zero_area_triangle(p[0], p[1], p[2]))
-            throw InputError(origin + ": shared triangle " + std::to_string(t) + " is degenerate or not finite");
+        if (!within_coordinate_range(p[0]) || !within_coordinate_range(p[1]) || !within_coordinate_range(p[2]) ||
+            zero_area_triangle(p[0], p[1], p[2]))
+            throw InputError(origin + ": shared triangle " + std::to_string(t) +
+                             " is degenerate, not finite or beyond the coordinate range (see kMaxCoordinate)");
     }
     RTCDevice dev = rtcNewDevice("threads=0");
     if (!dev) throw RuntimeFailure("cannot create an Embree device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
@@ -112,9 +117,14 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     const bool has_n = !mesh.normals.empty(), has_uv = !mesh.uvs.empty();
     for (size_t t = 0; t < mesh.size(); ++t) {
         const Vec3* p = &mesh.positions[3 * t];
-        for (int k = 0; k < 3; ++k)
+        for (int k = 0; k < 3; ++k) {
             if (!is_finite(p[k]))
                 throw InputError(origin + ": triangle " + std::to_string(t) + " has a non-finite vertex");
+            // Rays from such a point are invalid to Embree (see kMaxCoordinate).
+            if (!within_coordinate_range(p[k]))
+                throw InputError(fmt::format("{}: triangle {} has a vertex at ({}, {}, {}), beyond +-{:g} on an axis",
+                                             origin, t, p[k].x, p[k].y, p[k].z, kMaxCoordinate));
+        }
         if (mesh.material_ids[t] >= materials_.size())
             throw InputError(origin + ": triangle " + std::to_string(t) + " has no material");
         if (zero_area_triangle(p[0], p[1], p[2])) {

@@ -3,6 +3,7 @@
 // so that shading multiplies reflectances, not display-encoded values.
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -135,6 +136,11 @@ struct Pixels {
 };
 
 Pixels read_pixels(const std::string& path, int channels) {
+    // stb opens the file itself: a FIFO would block it for ever, a device feed it without end.
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (std::filesystem::exists(st) && !std::filesystem::is_regular_file(st))
+        throw InputError("cannot read texture '" + path + "': not a file");
     Pixels p;
     if (stbi_is_hdr(path.c_str())) {  // Radiance .hdr files are already linear
         float* px = stbi_loadf(path.c_str(), &p.w, &p.h, &p.file_channels, channels);

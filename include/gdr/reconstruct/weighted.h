@@ -36,7 +36,13 @@
 // Gradient-Domain Path Tracing" (2019), of judging a gradient by statistics
 // of its own estimate and its neighbourhood rather than by magnitude; the
 // test itself is this simpler two-estimator z-test. A noiseless input has
-// g = c_q - c_p exactly and is never touched.
+// g = c_q - c_p exactly and is never touched. Independently of the mode
+// and of the variances, a row with |g - (c_q - c_p)| above 1000 times the
+// local radiance and noise scale (|c_p| + |c_q| + the 5x5 mean |c| around
+// both + the standard deviation) is dropped: a pixel of one sample has no
+// variance to test with, and a gradient of 1e10 with an ordinary variance
+// would otherwise pull the whole solve. The start point of the solve uses
+// the primal's difference in place of every outlier row's gradient.
 //
 // L1 form: IRLS on residuals normalised by their standard deviation,
 // weight w / (|e| / sigma + eps), so with eps in units of sigma the energy
