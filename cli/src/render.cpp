@@ -103,6 +103,8 @@ namespace {
 struct FrameJob {
     int frame = 0;
     SceneFile* scene = nullptr;
+    std::pair<int, int> range;  ///< every frame of the command (--frames FIRST:LAST), checked before the first render
+    std::string option;         ///< "--frames A:B" or "--frame K", for messages
 };
 
 // gdr render of one image: a still, or the frame `job` of an animation.
@@ -230,6 +232,15 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     if (job) {
         if (!sf.animation)
             throw InputError(scene_path + ": --frame and --frames need a scene with an 'animation' block (frames)");
+        // The whole range before the first frame renders: a frame past the
+        // animation's end must not cost the frames before it their time.
+        const AnimationRange& r = sf.animation->range();
+        if (job->range.first < r.first || job->range.second > r.last) {
+            const int missing = job->range.first < r.first ? job->range.first : std::max(job->range.first, r.last + 1);
+            throw ParameterError(fmt::format("render {}: frame {} is outside the animation of {} (frames {} to {}); "
+                                             "nothing was rendered",
+                                             job->option, missing, scene_path, r.first, r.last));
+        }
         frame = job->frame;
     } else if (sf.animation) {
         frame = sf.animation->range().first;
@@ -550,7 +561,7 @@ int render(const std::vector<std::string>& args) {
     for (int k = frames->first; k <= frames->second; ++k) {
         std::vector<std::string> a = rest;
         for (size_t i : patterned) a[i] = frame_path(a[i - 1], rest[i], k);
-        FrameJob job{k, &scene};
+        FrameJob job{k, &scene, *frames, frames_opt};
         const int rc = render_one(a, &job);
         if (rc != 0) return rc;  // interrupted: the frames after it are not started
     }
