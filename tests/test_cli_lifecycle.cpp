@@ -3,7 +3,12 @@
 // (Signals, locks and special files need a real process: tests/lifecycle.sh.)
 #include <catch2/catch.hpp>
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
 #include <cmath>
+#include <fstream>
 #include <filesystem>
 #include <limits>
 #include <string>
@@ -107,4 +112,35 @@ TEST_CASE("lifecycle: merging a part with a non-finite pixel names the part's fi
     CAPTURE(e);
     CHECK_THAT(e, Contains(dir("bad.exr")) && Contains("color") && Contains("(3, 4)"));
     CHECK_FALSE(fs::exists(dir("m.exr")));
+}
+
+// Before the fix nothing was locked: the merge below replaced m.exr while
+// another run held it (checked with the previous binary, exit 0).
+TEST_CASE("lifecycle: an output another run holds is refused at once, naming the holder; no lock file stays",
+          "[cli][lifecycle]") {
+    OutDir dir("lifecycle-lock");
+    REQUIRE(cli::run({"render", kSmall, "--spp", "1", "--seed", "1", "-o", dir("a.exr")}) == 0);
+    REQUIRE(cli::run({"render", kSmall, "--spp", "1", "--seed", "2", "-o", dir("b.exr")}) == 0);
+    // Every command removes its lock file as it ends, after success and after an error.
+    CHECK(count_files(dir, "a.exr.lock") == 0);
+    CHECK(error_of({"merge", dir("a.exr"), dir("a.exr"), "-o", dir("m.exr")}) != "");
+    CHECK(count_files(dir, "m.exr.lock") == 0);
+    {
+        // Another run's lock, as gdr takes it (this process holds it on its own descriptor).
+        const int fd = open(dir("m.exr.lock").c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        REQUIRE(fd >= 0);
+        REQUIRE(flock(fd, LOCK_EX | LOCK_NB) == 0);
+        const std::string holder = "pid 4242 on host node7, gdr merge, since 2026-01-01 00:00:00 UTC\n";
+        REQUIRE(write(fd, holder.data(), holder.size()) == ssize_t(holder.size()));
+        std::ofstream(dir("m.exr")) << "held";
+        const std::string e = error_of({"merge", dir("a.exr"), dir("b.exr"), "-o", dir("m.exr")});
+        CHECK_THAT(e, Contains(dir("m.exr")) && Contains("pid 4242 on host node7"));
+        CHECK(file_bytes(dir("m.exr")) == "held");
+        CHECK_THAT(error_of({"render", kSmall, "--spp", "1", "--continue", "-o", dir("m.exr")}), Contains("pid 4242"));
+        close(fd);
+    }
+    // Released (the holder ended without removing its file): the next run takes it.
+    CHECK(error_of({"merge", dir("a.exr"), dir("b.exr"), "-o", dir("m.exr")}) == "");
+    CHECK(cli::read_stored_render(dir("m.exr")).spp == 2);
+    CHECK(count_files(dir, "m.exr.lock") == 0);
 }

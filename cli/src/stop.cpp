@@ -73,6 +73,13 @@ sigset_t stop_signals() {
 }
 
 void watch() {
+    // Its messages go to a stderr that may be a closed pipe (`2>&1 | head -1`):
+    // with SIGPIPE blocked here the write fails with EPIPE instead of ending
+    // the process, in the middle of a file being written.
+    sigset_t pipe;
+    sigemptyset(&pipe);
+    sigaddset(&pipe, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe, nullptr);
     const sigset_t set = stop_signals();
     for (;;) {
         siginfo_t info;
