@@ -16,9 +16,9 @@ int main(int argc, char** argv) {
         return gdr::cli::run(args);
     } catch (const gdr::Error& e) {
         fmt::print(stderr, "gdr: error: {}\n", e.what());
-        return 1;
+        return gdr::cli::stop_status() ? gdr::cli::stop_status() : 1;
     } catch (const std::exception& e) {
         fmt::print(stderr, "gdr: error: {}\n", e.what());
-        return 1;
+        return gdr::cli::stop_status() ? gdr::cli::stop_status() : 1;
     }
 }

@@ -12,6 +12,7 @@
 
 #include "gdr/core/error.h"
 #include "gdr/io/exr.h"
+#include "stop.h"
 
 namespace gdr::cli {
 
@@ -103,14 +104,23 @@ const CommandHelp kCommands[] = {
      "                        seed derives from --seed and the frame; -o (and --resume) take a frame\n"
      "                        pattern such as out.%04d.exr\n"
      "Ctrl-C (or SIGTERM) stops within about a second and writes the finished passes (exit status 130,\n"
-     "143); a second Ctrl-C stops at once."},
+     "143); a second Ctrl-C stops at once, still writing the finished passes. A signal during the final\n"
+     "write lets it finish, then exits 130/143; a signal while the scene loads exits at once. No\n"
+     "temporary file is left behind.\n"
+     "OUT is locked for the whole run (flock on OUT.exr.lock, which names the holder's pid and host): a\n"
+     "second run to OUT, such as another --continue of the same part, is refused. --continue replaces\n"
+     "OUT only if it still holds what it read, else its new samples go to a rescue file. Where the file\n"
+     "system has no flock a warning says so; where flock works on one node only (Lustre with\n"
+     "localflock), runs on different nodes are not kept apart and only that last check remains."},
     {"merge", "gdr merge A.exr B.exr [...] [--complete] [--frames FIRST:LAST] -o OUT.exr",
      "Pools renders of one scene with one integrator and its parameters (parts rendered with different\n"
      "seeds, or continuations of one seed) into the image of all their samples. Renders that hold the\n"
      "same samples, or differ in scene, integrator, parameter or resolution, are refused. A merged\n"
      "file can be merged again.\n"
      "  --complete   refuse renders short of the samples they were asked for (stopped early)\n"
-     "  --frames FIRST:LAST  merge each frame of an animation: every file name is a pattern (a.%04d.exr)"},
+     "  --frames FIRST:LAST  merge each frame of an animation: every file name is a pattern (a.%04d.exr)\n"
+     "OUT is locked while the merge runs (OUT.exr.lock, as for gdr render). Ctrl-C or SIGTERM during the\n"
+     "write lets it finish, then exits 130/143; no temporary file is left behind."},
     {"submit",
      "gdr submit SCENE.json --parts N [--spp N] [--seed S] [--integrator NAME] [--set key=value]...\n"
      "           [--width W] [--height H] [--resolution WxH] [--threads N] [--partition NAME]\n"
@@ -150,7 +160,10 @@ const CommandHelp kCommands[] = {
      "  --method NAME   poisson-l1 (default), poisson-l2, neural (where built: a plugin, loaded when asked\n"
      "                  for; --set weights=W.pt, default the shipped model), or any registered\n"
      "                  reconstructor (gdr list)\n"
-     "  --alpha A       weight of the primal in the screened Poisson energy (default 0.2)"},
+     "  --alpha A       weight of the primal in the screened Poisson energy (default 0.2)\n"
+     "OUT is locked while it runs (OUT.exr.lock, as for gdr render; with --frames one lock named after\n"
+     "the pattern). Ctrl-C or SIGTERM lets the file being written finish (with --frames: the frame being\n"
+     "written), then exits 130/143."},
     {"compare", "gdr compare IMAGE.exr REFERENCE.exr [--layer NAME] [--ref-layer NAME] [--downsample K]\n"
                 "gdr compare --frames 'IMAGE.%04d.exr' 'REFERENCE.%04d.exr' FIRST:LAST [--layer NAME] [...]",
      "Prints which layers are compared, the error of IMAGE against REFERENCE (MSE, relMSE, MAE, SSIM)\n"
@@ -252,6 +265,9 @@ int run(const std::vector<std::string>& args) {
             throw ParameterError("help: unknown command '" + args[1] + "'\n" + usage());
         return print_usage(args.size() == 2 ? args[1] : "");
     }
+    // Before any worker thread starts: the threads inherit the blocked
+    // signals, and the command's handling covers it from start to end.
+    const CommandSignals signals;
     // Writing a 512x512 G-PT render's EXR (25 MB of ZIP-compressed floats)
     // took 1.15 s on one thread and 0.64 s on two.
     static const bool exr_threads = [] {
@@ -261,22 +277,28 @@ int run(const std::vector<std::string>& args) {
     (void)exr_threads;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     const std::string& cmd = args[0];
-    // `gdr COMMAND --help` for every command, before its own option parsing.
-    if (find_command(cmd) && rest.size() == 1 && (rest[0] == "-h" || rest[0] == "--help")) return print_usage(cmd);
-    if (cmd == "render") return render(rest);
-    if (cmd == "info") return info(rest);
-    if (cmd == "merge") return merge(rest);
-    if (cmd == "submit") return submit(rest);
-    if (cmd == "status") return status(rest);
-    if (cmd == "list") {
-        if (!rest.empty()) throw ParameterError("list: takes no arguments, got '" + rest[0] + "'");
-        return list_plugins();
-    }
-    if (cmd == "check-shift") return check_shift(rest);
-    if (cmd == "reconstruct") return reconstruct(rest);
-    if (cmd == "compare") return compare(rest);
-    if (cmd == "video") return video(rest);
-    throw ParameterError("unknown command '" + cmd + "'\n" + usage());
+    const auto dispatch = [&]() -> int {
+        // `gdr COMMAND --help` for every command, before its own option parsing.
+        if (find_command(cmd) && rest.size() == 1 && (rest[0] == "-h" || rest[0] == "--help")) return print_usage(cmd);
+        if (cmd == "render") return render(rest);
+        if (cmd == "info") return info(rest);
+        if (cmd == "merge") return merge(rest);
+        if (cmd == "submit") return submit(rest);
+        if (cmd == "status") return status(rest);
+        if (cmd == "list") {
+            if (!rest.empty()) throw ParameterError("list: takes no arguments, got '" + rest[0] + "'");
+            return list_plugins();
+        }
+        if (cmd == "check-shift") return check_shift(rest);
+        if (cmd == "reconstruct") return reconstruct(rest);
+        if (cmd == "compare") return compare(rest);
+        if (cmd == "video") return video(rest);
+        throw ParameterError("unknown command '" + cmd + "'\n" + usage());
+    };
+    const int rc = dispatch();
+    // A stop signal that came while a file was being finished: the file is
+    // complete, the status still says the command was stopped.
+    return stop_status() ? stop_status() : rc;
 }
 
 }  // namespace gdr::cli

@@ -1,5 +1,6 @@
 #include "frames.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 
@@ -29,12 +30,16 @@ struct Directive {
     bool zero = false;
 };
 
+// Widest frame number: a wider one would be a name longer than a path can hold.
+constexpr int kMaxFrameWidth = 4096;
+
 Directive directive_at(const std::string& p, size_t i) {
     Directive d;
     size_t j = i + 1;
     if (j < p.size() && p[j] == '0') d.zero = true, ++j;
-    while (j < p.size() && std::isdigit(static_cast<unsigned char>(p[j])) && d.width < 100)
-        d.width = d.width * 10 + (p[j] - '0'), ++j;
+    // Every digit is read (a width is never cut short), capped only so that it cannot overflow.
+    while (j < p.size() && std::isdigit(static_cast<unsigned char>(p[j])))
+        d.width = std::min(d.width * 10 + (p[j] - '0'), kMaxFrameWidth + 1), ++j;
     if (j < p.size() && p[j] == 'd') d.length = j + 1 - i;
     return d;
 }
@@ -60,10 +65,17 @@ std::string frame_path(const std::string& opt, const std::string& pattern, int f
             throw ParameterError(opt + " '" + pattern + "': a '%' must start a frame number directive (%d, %04d)");
         if (used) throw ParameterError(opt + " '" + pattern + "': holds two frame number directives; give one");
         used = true;
-        char buf[128];
-        if (d.zero) std::snprintf(buf, sizeof buf, "%0*d", d.width, frame);
-        else std::snprintf(buf, sizeof buf, "%*d", d.width, frame);
-        out += buf;
+        if (d.width > kMaxFrameWidth)
+            throw ParameterError(fmt::format("{} '{}': a frame number wider than {} characters cannot be a file name",
+                                             opt, pattern, kMaxFrameWidth));
+        // Padded as printf pads, to any width.
+        std::string number = std::to_string(frame);
+        if (int(number.size()) < d.width) {
+            const size_t pad = size_t(d.width) - number.size();
+            if (!d.zero) number.insert(0, pad, ' ');
+            else number.insert(frame < 0 ? 1 : 0, pad, '0');
+        }
+        out += number;
         i += d.length - 1;
     }
     return out;

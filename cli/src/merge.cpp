@@ -9,6 +9,7 @@
 #include "gdr/cli/commands.h"
 #include "gdr/cli/plugins.h"
 #include "frames.h"
+#include "output_lock.h"
 #include "say.h"
 #include "gdr/core/error.h"
 #include "gdr/core/params.h"
@@ -76,9 +77,16 @@ int merge(const std::vector<std::string>& args) {
     if (out.empty()) throw ParameterError("merge: no output given (-o OUT.exr)");
     check_output_path(out);
     check_not_an_input(out, inputs);
+    const OutputLock lock(out, "gdr merge");
 
     std::vector<StoredRender> parts;
-    for (const std::string& f : inputs) parts.push_back(read_stored_render(f));
+    for (const std::string& f : inputs) {
+        parts.push_back(read_stored_render(f));
+        // Named here, with its file: found only in the merged image, a NaN
+        // could not be traced to the part that holds it.
+        for (const auto& name : parts.back().fb.names())
+            require_finite(parts.back().fb.get(name), f + ": layer '" + name + "'");
+    }
     if (complete) {
         // A part stopped early (a scheduler's SIGTERM, a time limit) would
         // leave the merged image short of samples without a word.

@@ -9,6 +9,8 @@
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/reconstruct/temporal.h"
 #include "frames.h"
+#include "output_lock.h"
+#include "stop.h"
 
 namespace gdr::cli {
 
@@ -37,10 +39,22 @@ int reconstruct_frames(const std::string& in, const std::pair<int, int>& range, 
     // Checked here too, so that a bad pattern is named with its option.
     for (int f : {range.first, range.second}) (void)frame_path("IN", in, f), (void)frame_path("-o", out, f);
     const TemporalOptions opt = temporal_options(params);
-    const FrameSequenceReport rep =
-        reconstruct_frame_sequence(in, range.first, range.second, out, opt, [](int frame, const std::string& path) {
-            fmt::print(stderr, "  frame {} -> {}\n", frame, path);
-        });
+    // One lock for the sequence, named after its pattern.
+    const OutputLock lock(out, "gdr reconstruct --frames");
+    // The library writes each frame through a temporary: a stop signal is
+    // taken after the frame being written, so that none is left half-written.
+    const PolledStop polled;
+    FrameSequenceReport rep;
+    try {
+        rep = reconstruct_frame_sequence(in, range.first, range.second, out, opt,
+                                         [](int frame, const std::string& path) {
+                                             fmt::print(stderr, "  frame {} -> {}\n", frame, path);
+                                             if (stop_flag()) throw Interrupted("stopped after frame " + std::to_string(frame));
+                                         });
+    } catch (const Interrupted& e) {
+        fmt::print(stderr, "stopped: {}\n", e.what());
+        return stop_status();
+    }
     fmt::print(stderr, "reconstructed frames {}..{} of {} ({} windows) -> {}\n", range.first, range.second, in,
                rep.windows.size(), out);
     return 0;
@@ -88,6 +102,7 @@ int reconstruct(const std::vector<std::string>& args) {
             inputs.push_back(base + suffix);
         check_not_an_input(out, inputs);
     }
+    const OutputLock lock(out, "gdr reconstruct");
     // Before reading the input: a method that is not built is named at once.
     require_reconstructor(method, "gdr reconstruct --method " + method);
 

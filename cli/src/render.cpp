@@ -1,5 +1,6 @@
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -15,8 +16,10 @@
 #include "gdr/cli/commands.h"
 #include "gdr/cli/plugins.h"
 #include "frames.h"
+#include "output_lock.h"
 #include "render_options.h"
 #include "say.h"
+#include "stop.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
@@ -30,30 +33,6 @@
 namespace gdr::cli {
 
 namespace {
-
-std::atomic<bool> g_interrupted{false};  // first interrupt: stop within about a second
-std::atomic<bool> g_abort{false};        // second interrupt: stop at once
-std::atomic<int> g_signal{0};            // the signal that interrupted the render
-static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs lock-free flags");
-
-// Writes a fixed message from a signal handler (write(2) is async-signal-safe; stdio is not).
-template <size_t N>
-void signal_message(const char (&text)[N]) {
-    const ssize_t r = write(STDERR_FILENO, text, N - 1);
-    (void)r;
-}
-
-// SIGTERM too: a batch scheduler ending a job sends it (before SIGKILL),
-// and the samples taken so far should still reach the file.
-extern "C" void on_stop_signal(int sig) {
-    g_signal = sig;
-    if (!g_interrupted.exchange(true)) {
-        signal_message("\ngdr: stopping within about a second, then writing the image (interrupt again to stop at once)\n");
-    } else {
-        g_abort = true;
-        signal_message("\ngdr: stopping at once, writing only the finished passes\n");
-    }
-}
 
 // Prints progress: a redrawn bar on a terminal, a plain line every 10% otherwise.
 class ProgressPrinter {
@@ -124,6 +103,8 @@ namespace {
 struct FrameJob {
     int frame = 0;
     SceneFile* scene = nullptr;
+    std::pair<int, int> range;  ///< every frame of the command (--frames FIRST:LAST), checked before the first render
+    std::string option;         ///< "--frames A:B" or "--frame K", for messages
 };
 
 // gdr render of one image: a still, or the frame `job` of an animation.
@@ -208,6 +189,9 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     if (continue_part && time_budget > 0.0)
         throw ParameterError("render: --continue renders a part of a fixed sample count (--spp), not --time");
     check_output_path(out_path);
+    // Held to the end: a second run to OUT (another --continue of the same
+    // part) is refused rather than replacing this one's samples, or this its.
+    const OutputLock lock(out_path, "gdr render");
     // --continue: an OUT already there is a part of this render to finish in
     // place (the write goes through a temporary renamed over it, so an
     // interrupted write keeps the old part).
@@ -215,6 +199,10 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     const bool in_place = continue_part && std::filesystem::exists(out_path, exists_ec);
     if (in_place) resume_path = out_path;
     check_not_an_input(out_path, {scene_path, in_place ? std::string() : resume_path});
+    // What OUT held when read ("" for none), taken before reading it: before
+    // replacing it, --continue checks that nothing changed it meanwhile (a
+    // run where the lock is not honoured, a copy), whose samples would be lost.
+    const std::string read_digest = continue_part ? file_digest(out_path) : "";
 
     // Resuming continues the previous render's sample sequence, so the merged
     // image equals one longer render. Everything about it is checked before
@@ -244,6 +232,15 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     if (job) {
         if (!sf.animation)
             throw InputError(scene_path + ": --frame and --frames need a scene with an 'animation' block (frames)");
+        // The whole range before the first frame renders: a frame past the
+        // animation's end must not cost the frames before it their time.
+        const AnimationRange& r = sf.animation->range();
+        if (job->range.first < r.first || job->range.second > r.last) {
+            const int missing = job->range.first < r.first ? job->range.first : std::max(job->range.first, r.last + 1);
+            throw ParameterError(fmt::format("render {}: frame {} is outside the animation of {} (frames {} to {}); "
+                                             "nothing was rendered",
+                                             job->option, missing, scene_path, r.first, r.last));
+        }
         frame = job->frame;
     } else if (sf.animation) {
         frame = sf.animation->range().first;
@@ -287,8 +284,8 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     const uint64_t base_seed = uint64_t(seed >= 0 ? seed : sf.defaults.seed);
     st.seed = frame_seed_of(base_seed);
     st.first_sample = first_sample >= 0 ? first_sample : 0;
-    st.cancel = &g_interrupted;
-    st.abort = &g_abort;
+    st.cancel = &stop_flag();
+    st.abort = &abort_flag();
     // What the file records as asked for: the number one past the last
     // sample of the sequence (its samples per pixel when it starts at 0).
     uint64_t target_spp = 0;
@@ -400,22 +397,13 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         say("resuming {}: {} spp held, {}\n", resume_path, previous.spp,
             st.time_budget > 0.0 ? fmt::format("{:.3f} s more", st.time_budget) : fmt::format("{} spp more", st.spp));
 
-    g_interrupted = false;
-    g_abort = false;
-    g_signal = 0;
-    struct SignalScope {
-        using Handler = void (*)(int);
-        Handler old_int = std::signal(SIGINT, on_stop_signal);
-        Handler old_term = std::signal(SIGTERM, on_stop_signal);
-        ~SignalScope() {
-            std::signal(SIGINT, old_int);
-            std::signal(SIGTERM, old_term);
-        }
-    };
+    // From the first sample to the file's last byte a stop signal only stops
+    // the sampling: the samples taken so far are then written (or rescued),
+    // and a signal during the write lets it finish.
+    const PolledStop polled;
     FrameBuffer fb;
     RenderStats rs;
     {
-        SignalScope signals;
         ProgressPrinter printer;
         try {
             const ProgressFn show = [&](const Progress& p) { printer(p); };
@@ -430,12 +418,12 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         } catch (const Interrupted& e) {
             printer.finish();
             say("stopped: {}\n", e.what());
-            return 128 + (g_signal ? g_signal.load() : SIGINT);
+            return stop_status() ? stop_status() : 128 + SIGINT;
         }
         printer.finish();
     }
 
-    const bool interrupted = g_interrupted || g_abort;
+    const bool interrupted = stop_flag() || abort_flag();
     if (frame) {
         // In the driver, not the integrators: every integrator's frames get them.
         const auto t_motion = std::chrono::steady_clock::now();
@@ -462,7 +450,9 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     meta["interrupted"] = interrupted ? "true" : "false";
     // From here on a failure must not lose the samples: the new part alone is
     // a valid render (gdr merge or --resume take it) and goes to the rescue file.
+    FrameBuffer new_part;  // --continue: the new samples alone, for the rescue file
     try {
+        if (continue_part) new_part = fb;
         if (!resume_path.empty()) {
             FrameBuffer merged = previous.fb;
             merge_renders(merged, fb);
@@ -486,6 +476,24 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         throw RuntimeFailure(std::string(e.what()) + "\nthe new samples were saved to " + rescue_path() +
                              " (gdr merge accepts it)");
     }
+    if (continue_part) {
+        if (const std::string now = file_digest(out_path); now != read_digest) {
+            std::string held = "it is gone";
+            if (!now.empty()) {
+                try {
+                    held = fmt::format("it now holds {} spp", read_stored_render(out_path).spp);
+                } catch (const Error&) {
+                    held = "it is no longer a render gdr can read";
+                }
+            }
+            write_exr_or_rescue(rescue_path(), new_part);
+            throw RuntimeFailure(fmt::format("refusing to replace {}: it changed while this run continued it (it held {} "
+                                             "when read; {}), and its samples would be lost; the new samples were saved "
+                                             "to {} (gdr merge accepts it)",
+                                             out_path, read_digest.empty() ? "nothing" : fmt::format("{} spp", previous.spp),
+                                             held, rescue_path()));
+        }
+    }
     const std::string preview = write_render(out_path, fb, float(exposure));
 
     say("{} {} spp in {:.2f} s: {:.2f} M samples/s, {:.2f} M rays/s\n", interrupted ? "interrupted after" : "rendered",
@@ -500,11 +508,12 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     std::string layers;
     for (const auto& n : fb.names()) layers += " " + n;
     say("wrote {} (layers:{}){}\n", out_path, layers, preview.empty() ? "" : " and " + preview);
-    if (g_abort && fb.has("dx") && !fb.has("reconstruction_weighted") && !fb.has("reconstruction_l1") &&
+    if (abort_flag() && fb.has("dx") && !fb.has("reconstruction_weighted") && !fb.has("reconstruction_l1") &&
         !fb.has("reconstruction_l2"))
         say("the reconstructions were skipped to stop at once: gdr reconstruct {} computes one, and --resume or "
             "gdr merge recompute them\n", out_path);
-    return interrupted ? 128 + (g_signal ? g_signal.load() : SIGINT) : 0;  // the shell's convention
+    // The shell's convention, also for a signal that came during the write.
+    return stop_status();
 }
 
 }  // namespace
@@ -552,7 +561,7 @@ int render(const std::vector<std::string>& args) {
     for (int k = frames->first; k <= frames->second; ++k) {
         std::vector<std::string> a = rest;
         for (size_t i : patterned) a[i] = frame_path(a[i - 1], rest[i], k);
-        FrameJob job{k, &scene};
+        FrameJob job{k, &scene, *frames, frames_opt};
         const int rc = render_one(a, &job);
         if (rc != 0) return rc;  // interrupted: the frames after it are not started
     }

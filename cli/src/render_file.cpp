@@ -17,6 +17,7 @@
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/png.h"
+#include "stop.h"
 
 namespace gdr::cli {
 
@@ -324,6 +325,8 @@ void check_not_an_input(const std::string& out, const std::vector<std::string>& 
 }
 
 std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure) {
+    // A stop signal waits for both files: neither is left half-written.
+    const WriteSection section;
     write_exr_or_rescue(out, fb);
     // A device or pipe (-o /dev/null) gets no preview: it would be a stray file in /dev.
     std::error_code ec;
@@ -346,6 +349,7 @@ std::string preview_layer(const FrameBuffer& fb) {
 std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {
     // Not rescued: a NaN or Inf is a defect to report, never an image to keep.
     check_finite(fb, path);
+    const WriteSection section;
     try {
         write_exr(path, fb);
         return path;

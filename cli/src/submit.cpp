@@ -30,6 +30,7 @@
 #include "gdr/io/scene_file.h"
 #include "process.h"
 #include "render_options.h"
+#include "stop.h"
 
 namespace gdr::cli {
 
@@ -367,6 +368,8 @@ int resume_submission(const std::string& out, bool dry_run) {
         return 0;
     }
     if (find_program("sbatch").empty()) throw RuntimeFailure("sbatch not found: gdr submit needs Slurm's sbatch on PATH");
+    // The cancellations and the new jobs' records complete before a stop signal ends the process.
+    const WriteSection section;
     for (const std::string& id : again.stale_merges) {
         const ProgramResult r = run_program({"scancel", id});
         if (r.status != 0) throw RuntimeFailure("scancel " + id + " failed: " + first_line(r.err));
@@ -845,6 +848,10 @@ int submit(const std::vector<std::string>& args) {
     }
     if (find_program("sbatch").empty())
         throw RuntimeFailure("sbatch not found: gdr submit needs Slurm's sbatch on PATH (--dry-run prints the scripts)");
+    // A stop signal waits for the folder, its scripts and the queued jobs'
+    // records to be complete: a half-made folder could be neither resumed nor
+    // submitted again.
+    const WriteSection section;
     fs::create_directories(dir + "/logs", ec);
     if (ec) throw RuntimeFailure("cannot create " + dir + "/logs: " + ec.message());
     try {

@@ -25,6 +25,7 @@
 #include "gdr/reconstruct/temporal.h"
 #include "process.h"
 #include "say.h"
+#include "stop.h"
 
 namespace gdr::cli {
 
@@ -128,21 +129,6 @@ std::string tail(const std::string& err, int lines = 12) {
     return err.substr(at, end - at);
 }
 
-volatile std::sig_atomic_t g_video_stop = 0;
-extern "C" void on_video_stop(int sig) { g_video_stop = sig; }
-
-// Stops the encoding cleanly on Ctrl-C or SIGTERM, so that no partial MP4 stays behind.
-struct StopSignals {
-    using Handler = void (*)(int);
-    Handler old_int = std::signal(SIGINT, on_video_stop);
-    Handler old_term = std::signal(SIGTERM, on_video_stop);
-    StopSignals() { g_video_stop = 0; }
-    ~StopSignals() {
-        std::signal(SIGINT, old_int);
-        std::signal(SIGTERM, old_term);
-    }
-};
-
 // Removes the temporary MP4 unless it was renamed into place.
 struct PartialFile {
     std::string path;
@@ -208,7 +194,10 @@ int run_video(const VideoJob& job) {
             say("warning: {} layer '{}': {} NaN or infinite values, shown as its PNG shows them (NaN and -Inf "
                 "black, +Inf white)\n",
                 inputs[i], layer, bad);
-        if (!pngs.empty()) write_png_preview(pngs[i], f.img, job.exposure);
+        if (!pngs.empty()) {
+            const WriteSection section;
+            write_png_preview(pngs[i], f.img, job.exposure);
+        }
         say("  frame {} -> {}\n", job.first + int(i), pngs.empty() ? job.mp4 : pngs[i]);
         return encode ? rgb24(f.img, job.exposure, vw, vh) : std::string();
     };
@@ -240,18 +229,19 @@ int run_video(const VideoJob& job) {
 
     ProgramResult r;
     {
-        const StopSignals stop;
+        // Stops the encoding cleanly on Ctrl-C or SIGTERM, so that no partial MP4 stays behind.
+        const PolledStop stop;
         try {
             r = run_program_fed(argv, [&]() -> std::string {
-                if (g_video_stop) throw Stopped{};
+                if (stop_flag()) throw Stopped{};
                 return next < inputs.size() ? frame(next++) : std::string();
             });
         } catch (const Stopped&) {
         }
         // Ctrl-C reaches ffmpeg too, which may have stopped before the next frame was asked for.
-        if (g_video_stop) {
+        if (stop_flag()) {
             say("stopped: {} not written\n", job.mp4);
-            return 128 + int(g_video_stop);
+            return stop_status();
         }
     }
     if (!r.started) throw RuntimeFailure("cannot run ffmpeg (" + ffmpeg + "): " + r.err);

@@ -21,7 +21,13 @@
 #include <OpenEXR/ImfThreading.h>
 #include <OpenEXR/Iex.h>
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -121,6 +127,59 @@ std::vector<ChannelGroup> group_channels(const std::vector<std::string>& names, 
     return groups;
 }
 
+// What a file that is not a regular one is, for an error message.
+std::string file_kind(mode_t mode) {
+    if (S_ISDIR(mode)) return "a directory";
+    if (S_ISFIFO(mode)) return "a pipe (FIFO)";
+    if (S_ISCHR(mode) || S_ISBLK(mode)) return "a device";
+    if (S_ISSOCK(mode)) return "a socket";
+    return "not a regular file";
+}
+
+// An EXR read from a regular file only. Opened with O_NONBLOCK and checked
+// with fstat on the descriptor it reads, so that a FIFO, a device or a
+// directory is a named error and never blocks the reader (a FIFO with no
+// writer would wait for ever, a device such as /dev/zero never ends).
+class RegularFileIn : public Imf::IStream {
+public:
+    explicit RegularFileIn(const std::string& path) : Imf::IStream(path.c_str()) {
+        struct stat st {};
+        // Before opening: opening some devices does something.
+        if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+            throw InputError(path + ": " + file_kind(st.st_mode) + ", not an EXR file");
+        fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+        if (fd_ < 0) throw InputError(path + ": cannot open: " + std::strerror(errno));
+        if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
+            const std::string what = file_kind(st.st_mode);
+            ::close(fd_);
+            throw InputError(path + ": " + what + ", not an EXR file");
+        }
+        size_ = uint64_t(st.st_size);
+    }
+    ~RegularFileIn() override { ::close(fd_); }
+    RegularFileIn(const RegularFileIn&) = delete;
+    RegularFileIn& operator=(const RegularFileIn&) = delete;
+
+    bool read(char c[], int n) override {
+        if (n < 0) throw Iex::InputExc("negative read size");
+        for (size_t done = 0; done < size_t(n);) {
+            const ssize_t r = ::pread(fd_, c + done, size_t(n) - done, off_t(pos_ + done));
+            if (r < 0 && errno == EINTR) continue;
+            if (r < 0) throw Iex::InputExc(std::string("read failed: ") + std::strerror(errno));
+            if (r == 0) throw Iex::InputExc("early end of file");
+            done += size_t(r);
+        }
+        pos_ += uint64_t(n);
+        return pos_ < size_;
+    }
+    uint64_t tellg() override { return pos_; }
+    void seekg(uint64_t pos) override { pos_ = pos; }
+
+private:
+    int fd_ = -1;
+    uint64_t pos_ = 0, size_ = 0;
+};
+
 /// The string attributes of `header` as metadata: "gdr:k" -> k, others as named; the layer order is not metadata.
 std::map<std::string, std::string> header_metadata(const Imf::Header& header) {
     std::map<std::string, std::string> out;
@@ -212,7 +271,8 @@ void write_exr(const std::string& path, const FrameBuffer& fb) {
 FrameBuffer read_exr(const std::string& path) {
     const uintmax_t file_bytes = exr_file_size(path);
     try {
-        Imf::InputFile file(path.c_str());
+        RegularFileIn stream(path);
+        Imf::InputFile file(stream, Imf::globalThreadCount());
         const Imf::Header& header = file.header();
         const Imath::Box2i dw = header.dataWindow();
         const long long wl = (long long)dw.max.x - dw.min.x + 1, hl = (long long)dw.max.y - dw.min.y + 1;
@@ -286,7 +346,8 @@ ExrHeader read_exr_header(const std::string& path) {
     exr_file_size(path);
     try {
         // The header alone: Imf::InputFile reads no pixels until asked to.
-        Imf::InputFile file(path.c_str());
+        RegularFileIn stream(path);
+        Imf::InputFile file(stream, Imf::globalThreadCount());
         const Imf::Header& header = file.header();
         const Imath::Box2i dw = header.dataWindow();
         ExrHeader out;

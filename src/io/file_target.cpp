@@ -3,6 +3,9 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <thread>
 #include <filesystem>
 
 #include "gdr/core/error.h"
@@ -32,6 +35,10 @@ FileTarget file_target(const std::string& requested) {
 
 void commit(const FileTarget& t) {
     if (t.direct) return;
+    // For tests only: holds the finished temporary this many milliseconds
+    // before the rename, so that a test can stop a process in that window.
+    if (const char* delay = std::getenv("GDR_TEST_WRITE_DELAY_MS"))
+        std::this_thread::sleep_for(std::chrono::milliseconds(std::strtol(delay, nullptr, 10)));
     std::error_code ec;
     std::filesystem::rename(t.write_path, t.path, ec);
     if (ec) {

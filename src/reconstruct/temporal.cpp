@@ -333,8 +333,14 @@ std::string frame_path(const std::string& pattern, int frame) {
     if (conv == std::string::npos)
         throw ParameterError("frame pattern '" + pattern + "' holds no frame number conversion (%d, %04d)");
     const std::string spec = pattern.substr(conv, conv_end - conv);
-    char buf[64];
-    std::snprintf(buf, sizeof buf, spec.c_str(), frame);
+    // Sized to the number, so that no width is cut short (a cut number would
+    // give every frame one name); a width no path could hold is refused.
+    const int need = std::snprintf(nullptr, 0, spec.c_str(), frame);
+    if (need < 0 || need > 4096)
+        throw ParameterError("frame pattern '" + pattern + "': its frame number would be wider than 4096 characters");
+    std::string buf(size_t(need) + 1, '\0');
+    std::snprintf(buf.data(), buf.size(), spec.c_str(), frame);
+    buf.resize(size_t(need));
     std::string out;
     for (size_t i = 0; i < pattern.size(); ++i) {
         if (i == conv) {

@@ -15,6 +15,11 @@ namespace gdr::cli {
 /// Dispatches `args` (without the program name) to a subcommand.
 int run(const std::vector<std::string>& args);
 
+/// The exit status a stop signal (SIGINT, SIGTERM) asked for during the last
+/// run(): 128 + the signal's number, 0 if none came. A command that fails
+/// after such a signal exits with it rather than 1.
+int stop_status();
+
 /// gdr render SCENE.json [options] -o OUT.exr
 int render(const std::vector<std::string>& args);
 /// gdr merge A.exr B.exr [...] -o OUT.exr
