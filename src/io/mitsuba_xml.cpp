@@ -451,7 +451,15 @@ private:
     std::shared_ptr<Texture> build_texture(xml_node n);
     std::shared_ptr<Texture> opacity_texture(xml_node t);
     std::shared_ptr<Texture> bitmap(xml_node n, Props& p, bool opacity);
-    Color conductor_f0(Props& p, xml_node n);
+    std::shared_ptr<Texture> scale_texture(xml_node n, Props& p);
+    Color conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spec = nullptr);
+    MicrofacetType microfacet_type(Props& p, const std::string& def);
+    std::shared_ptr<Texture> tint_texture(Props& p, const std::string& name);
+    std::shared_ptr<Bsdf> build_phong(Props& p);
+    std::shared_ptr<Bsdf> build_ward(Props& p, float alpha);
+    std::shared_ptr<Bsdf> build_rough_diffuse(Props& p, std::shared_ptr<Texture> kd);
+    float scalar_param(Props& p, const std::string& name, float def);
+    void ignore_smooth_roughness(xml_node n, Props& p);
     void sensor(xml_node n);
     void integrator(xml_node n);
     // `outer` places the shape: an instance's transform, else the identity.
@@ -775,7 +783,7 @@ float Importer::ior(Props& p, const std::string& name, float def) {
     return v;
 }
 
-Color Importer::conductor_f0(Props& p, xml_node n) {
+Color Importer::conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spec_texture) {
     const xml_node eta_n = take(p, "eta"), k_n = take(p, "k");
     const std::string def_material = version_major_ < 2 ? "Cu" : "none";
     const std::string material = get_string(p, "material", def_material);
@@ -792,11 +800,95 @@ Color Importer::conductor_f0(Props& p, xml_node n) {
     } else if (ext != 1.f) {
         unsupported(n, "a named conductor in a medium other than vacuum (ext_eta)", "ignores ext_eta");
     }
+    if (spec_texture) {
+        // A texture (or colour) multiplying the reflectance per uv.
+        *spec_texture = get_texture(p, "specular_reflectance", Color(1.f));
+        return glm::clamp(f0, Color(0.f), Color(1.f));
+    }
     const Color spec = get_colour(p, "specular_reflectance", Color(1.f));
     return glm::clamp(f0 * spec, Color(0.f), Color(1.f));
 }
 
 // ---------------------------------------------------------------- BSDFs and textures
+
+/// A microfacet BSDF's distribution: GGX and Beckmann as Mitsuba defines
+/// them; Mitsuba's Phong microfacet distribution (a near-twin of Beckmann)
+/// and Ashikhmin-Shirley are rendered as Beckmann of the same alpha.
+MicrofacetType Importer::microfacet_type(Props& p, const std::string& def) {
+    const xml_node dn = p.named.count("distribution") ? p.named.at("distribution") : xml_node();
+    const std::string d = get_string(p, "distribution", def);
+    if (d == "ggx") return MicrofacetType::GGX;
+    if (d == "beckmann") return MicrofacetType::Beckmann;
+    if (d == "phong" || d == "as") {
+        warn(dn ? dn : p.owner, "microfacet distribution '" + d + "' is rendered as Beckmann of the same alpha");
+        return MicrofacetType::Beckmann;
+    }
+    fail(dn ? dn : p.owner, "unknown microfacet distribution '" + d + "' (expected ggx or beckmann)");
+}
+
+/// A dielectric's specular_reflectance or specular_transmittance: null when
+/// absent or white, so the BSDF skips the lookup.
+std::shared_ptr<Texture> Importer::tint_texture(Props& p, const std::string& name) {
+    if (!p.named.count(name)) return nullptr;
+    auto t = get_texture(p, name, Color(1.f));
+    if (t->is_constant() && t->mean() == Color(1.f)) return nullptr;
+    return t;
+}
+
+/// A scalar property that Mitsuba also accepts as a texture (a roughness, an
+/// exponent): a texture that varies over the surface is taken at its mean,
+/// with a note, since gdr's shift mappings classify a BSDF by one roughness.
+float Importer::scalar_param(Props& p, const std::string& name, float def) {
+    const xml_node e = p.named.count(name) ? p.named.at(name) : xml_node();
+    const auto t = get_texture(p, name, Color(def));
+    const float v = t->mean().r;
+    if (!t->is_constant()) unsupported(e, "a texture for '" + name + "'", fmt::format("uses its mean {}", v));
+    if (!(v >= 0.f)) fail(e ? e : p.owner, "'" + name + "' must be >= 0");
+    return v;
+}
+
+/// Roughness properties on a smooth BSDF: Mitsuba 0.5/0.6 never reads them
+/// (it only warns of unqueried properties) and renders the surface smooth, so
+/// gdr does the same with a warning; Mitsuba 3 refuses them, and so do
+/// strict loads of 3.x files here (finish() reports them).
+void Importer::ignore_smooth_roughness(xml_node n, Props& p) {
+    if (version_major_ >= 2) return;
+    for (const char* k : {"alpha", "alpha_u", "alpha_v", "distribution", "sample_visible"}) {
+        if (const xml_node c = take(p, k))
+            warn(c, std::string("'") + k + "' on a smooth " + attr(n, "type") +
+                        " is ignored, as Mitsuba 0.6 ignores it: the surface is smooth");
+    }
+}
+
+/// Mitsuba's modified Phong: diffuse_reflectance (0.5), specular_reflectance
+/// (0.2), exponent (30).
+std::shared_ptr<Bsdf> Importer::build_phong(Props& p) {
+    auto kd = get_texture(p, "diffuse_reflectance", Color(0.5f));
+    auto ks = get_texture(p, "specular_reflectance", Color(0.2f));
+    return make_phong(std::move(kd), std::move(ks), scalar_param(p, "exponent", 30.f));
+}
+
+/// Mitsuba's Ward: variant (balanced; ward, ward-duer), diffuse_reflectance
+/// (0.5), specular_reflectance (0.2), roughness alpha_u = alpha_v (0.1).
+std::shared_ptr<Bsdf> Importer::build_ward(Props& p, float alpha) {
+    const xml_node vn = p.named.count("variant") ? p.named.at("variant") : xml_node();
+    const std::string v = get_string(p, "variant", "balanced");
+    WardVariant variant = WardVariant::Balanced;
+    if (v == "ward") variant = WardVariant::Ward;
+    else if (v == "ward-duer") variant = WardVariant::WardDuer;
+    else if (v != "balanced") fail(vn, "unknown Ward variant '" + v + "' (expected ward, ward-duer or balanced)");
+    auto kd = get_texture(p, "diffuse_reflectance", Color(0.5f));
+    auto ks = get_texture(p, "specular_reflectance", Color(0.2f));
+    if (!(alpha > 0.f)) fail(p.owner, "Ward's roughness must be positive");
+    return make_ward(std::move(kd), std::move(ks), alpha, variant);
+}
+
+/// Mitsuba's roughdiffuse (Oren-Nayar): alpha (0.2), use_fast_approx (false).
+std::shared_ptr<Bsdf> Importer::build_rough_diffuse(Props& p, std::shared_ptr<Texture> kd) {
+    const float alpha = scalar_param(p, "alpha", 0.2f);
+    const bool fast = get_bool(p, "use_fast_approx", false);
+    return make_oren_nayar(std::move(kd), alpha, fast);
+}
 
 std::shared_ptr<BuiltBsdf> Importer::bsdf(xml_node n) {
     if (std::string(n.name()) == "ref") {
@@ -831,18 +923,13 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         p.used.insert(kids[0].internal_object());
         return bsdf(kids[0]);
     };
-    const auto distribution = [&](const std::string& def) {
-        const std::string d = get_string(p, "distribution", def);
-        if (d == "beckmann" || d == "phong" || d == "as")
-            warn(n, "microfacet distribution '" + d + "' is rendered as GGX of the same alpha");
-        else if (d != "ggx")
-            fail(n, "unknown microfacet distribution '" + d + "' (expected ggx or beckmann)");
-    };
+    const auto distribution = [&](const std::string& def) { return microfacet_type(p, def); };
     const auto roughness = [&](float def) {
         ignore(p, {"sample_visible"});
-        bool given_u = false, given_v = false;
-        const float a = get_float(p, "alpha", def);
-        const float au = get_float(p, "alpha_u", a, &given_u), av = get_float(p, "alpha_v", a, &given_v);
+        // Roughness textures are taken at their mean (scalar_param).
+        const bool given_u = p.named.count("alpha_u") > 0, given_v = p.named.count("alpha_v") > 0;
+        const float a = scalar_param(p, "alpha", def);
+        const float au = given_u ? scalar_param(p, "alpha_u", a) : a, av = given_v ? scalar_param(p, "alpha_v", a) : a;
         if (given_u != given_v) fail(n, "give both alpha_u and alpha_v");
         float alpha = a;
         if (given_u) {
@@ -853,41 +940,47 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         return alpha;
     };
 
+    if (type == "dielectric" || type == "thindielectric" || type == "conductor" || type == "plastic")
+        ignore_smooth_roughness(n, p);
     if (type == "diffuse" || type == "roughdiffuse") {
         // 0.6 also takes the name diffuseReflectance.
         if (p.named.count("reflectance") && p.named.count("diffuse_reflectance"))
             fail(n, "give either reflectance or diffuse_reflectance");
         auto kd = get_texture(p, p.named.count("diffuse_reflectance") ? "diffuse_reflectance" : "reflectance", Color(0.5f));
-        if (type == "roughdiffuse") {
-            ignore(p, {"alpha", "use_fast_approx"});
-            warn(n, "roughdiffuse (Oren-Nayar) is rendered as diffuse (Lambertian) of the same reflectance");
-        }
-        b->bsdf = make_lambertian(std::move(kd));
+        if (type == "roughdiffuse") b->bsdf = build_rough_diffuse(p, std::move(kd));
+        else b->bsdf = make_lambertian(std::move(kd));
     } else if (type == "conductor") {
         b->bsdf = make_mirror(conductor_f0(p, n));
     } else if (type == "roughconductor") {
-        distribution("beckmann");
+        const MicrofacetType md = distribution("beckmann");
         const float alpha = roughness(0.1f);
-        const Color f0 = conductor_f0(p, n);
-        b->bsdf = alpha < kMinGgxAlpha ? make_mirror(f0) : make_rough_conductor(f0, alpha);
+        std::shared_ptr<Texture> spec;
+        Color f0 = conductor_f0(p, n, &spec);
+        if (spec->is_constant()) f0 = glm::clamp(f0 * spec->mean(), Color(0.f), Color(1.f)), spec = nullptr;
+        if (alpha < kMinGgxAlpha) {
+            if (spec) unsupported(p.named.at("specular_reflectance"), "a textured reflectance on a smooth conductor", "uses its mean");
+            b->bsdf = make_mirror(spec ? f0 * spec->mean() : f0);
+        } else {
+            b->bsdf = make_rough_conductor(f0, alpha, md, spec);
+        }
     } else if (type == "dielectric" || type == "thindielectric" || type == "roughdielectric") {
         const float eta = ior(p, "int_ior", 1.5046f) / ior(p, "ext_ior", 1.00028f);
-        for (const char* k : {"specular_reflectance", "specular_transmittance"})
-            if (get_colour(p, k, Color(1.f)) != Color(1.f))
-                unsupported(p.named.at(k), std::string(k) + " other than 1", "renders it as 1");
+        auto r = tint_texture(p, "specular_reflectance"), t = tint_texture(p, "specular_transmittance");
         if (type == "dielectric") {
-            b->bsdf = make_dielectric(eta);
+            b->bsdf = make_dielectric(eta, std::move(r), std::move(t));
         } else if (type == "thindielectric") {
-            b->bsdf = make_thin_dielectric(eta);
+            b->bsdf = make_thin_dielectric(eta, std::move(r), std::move(t));
         } else {
-            distribution("beckmann");
+            const MicrofacetType md = distribution("beckmann");
             const float alpha = roughness(0.1f);
-            b->bsdf = alpha < kMinGgxAlpha ? make_dielectric(eta) : make_rough_dielectric(eta, alpha);
+            b->bsdf = alpha < kMinGgxAlpha ? make_dielectric(eta, std::move(r), std::move(t))
+                                           : make_rough_dielectric(eta, alpha, std::move(r), std::move(t), md);
         }
     } else if (type == "plastic" || type == "roughplastic") {
         float alpha = kSmoothPlasticAlpha;
+        MicrofacetType md = MicrofacetType::GGX;
         if (type == "roughplastic") {
-            distribution("beckmann");
+            md = distribution("beckmann");
             alpha = std::max(roughness(0.1f), kMinGgxAlpha);
         }
         const float eta = ior(p, "int_ior", 1.49f) / ior(p, "ext_ior", 1.00028f);
@@ -898,7 +991,12 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         const float fdr = internal_diffuse_fresnel(eta);
         auto coated = std::make_shared<CoatedDiffuseTexture>(std::move(kd), (1.f - f0) * (1.f - f0) / (eta * eta), fdr,
                                                              nonlinear);
-        b->bsdf = make_plastic(std::move(coated), glm::clamp(spec * f0, Color(0.f), Color(1.f)), alpha);
+        b->bsdf = make_plastic(std::move(coated), glm::clamp(spec * f0, Color(0.f), Color(1.f)), alpha, md);
+    } else if (type == "phong") {
+        b->bsdf = build_phong(p);
+    } else if (type == "ward") {
+        const float alpha = roughness(0.1f);
+        b->bsdf = build_ward(p, alpha);
     } else if (type == "twosided") {
         int count = 0;
         for (xml_node c : p.objects)
@@ -914,8 +1012,7 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         b->bsdf = inner->bsdf;
         const xml_node o = p.named.count("opacity") ? p.named.at("opacity") : xml_node();
         if (!o) {
-            b->opacity = make_constant_texture(Color(0.5f));
-            warn(n, "mask without an opacity: Mitsuba's default 0.5 is a cut-out threshold in gdr, so the surface is opaque");
+            b->opacity = make_constant_texture(Color(0.5f));  // Mitsuba's default: half transparent
         } else if (std::string(o.name()) == "texture" || std::string(o.name()) == "ref") {
             take(p, "opacity");
             xml_node t = std::string(o.name()) == "ref" ? resolve(o) : o;
@@ -923,12 +1020,8 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
             b->opacity = opacity_texture(t);
         } else {
             take(p, "opacity");
-            const Color c = colour_of(o);
-            const float v = luminance(c);
-            if (v != 0.f && v != 1.f)
-                warn(o, fmt::format("constant opacity {} is a cut-out threshold in gdr: the surface is {}", v,
-                                    v < 0.5f ? "invisible" : "opaque"));
-            b->opacity = make_constant_texture(c);
+            // A fractional opacity lets rays through with probability 1 - opacity (Material::opacity).
+            b->opacity = make_constant_texture(colour_of(o));
         }
     } else if (type == "bumpmap" || type == "normalmap" || type == "blendbsdf" || type == "coating" ||
                type == "roughcoating") {
@@ -994,8 +1087,13 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
     io.srgb = !get_bool(p, "raw", false);
     bool gamma_given = false;
     const float gamma = get_float(p, "gamma", -1.f, &gamma_given);
-    if (gamma_given && gamma == 1.f) io.srgb = false;
-    else if (gamma_given && gamma != -1.f) unsupported(n, fmt::format("gamma {}", gamma), "decodes the file as sRGB");
+    // Mitsuba's gamma: 1 linear, -1 sRGB, any other positive value a power law.
+    if (gamma_given && gamma == 1.f) {
+        io.srgb = false;
+    } else if (gamma_given && gamma != -1.f) {
+        if (!(gamma > 0.f) || !std::isfinite(gamma)) fail(p.named.at("gamma"), "gamma must be positive, or -1 for sRGB");
+        io.gamma = gamma;
+    }
     ignore(p, {"max_anisotropy", "cache", "accel", "format"});
     if (p.named.count("channel")) unsupported(p.named.at("channel"), "a single channel of a bitmap", "uses its colour");
     take(p, "channel");
@@ -1019,6 +1117,21 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
     return make_uv_transformed_texture(t, flip * uvm * flip);
 }
 
+/// Mitsuba's `scale` texture: its one nested texture times `scale` (a number or colour).
+std::shared_ptr<Texture> Importer::scale_texture(xml_node n, Props& p) {
+    std::vector<xml_node> kids;
+    for (xml_node c : p.objects)
+        if (std::string(c.name()) == "texture" || std::string(c.name()) == "ref") kids.push_back(c);
+    for (const auto& [name, c] : p.named)
+        if (name != "scale" && (std::string(c.name()) == "texture" || std::string(c.name()) == "ref")) kids.push_back(c);
+    if (kids.size() != 1) fail(n, "a scale texture needs exactly one nested <texture> (or <ref>)");
+    p.used.insert(kids[0].internal_object());
+    xml_node t = std::string(kids[0].name()) == "ref" ? resolve(kids[0]) : kids[0];
+    if (std::string(t.name()) != "texture") fail(kids[0], "refers to " + describe(t) + ", not a <texture>");
+    const Color scale = get_colour(p, "scale", Color(1.f));
+    return make_scaled_texture(texture(t), scale);
+}
+
 std::shared_ptr<Texture> Importer::build_texture(xml_node n) {
     const std::string type = need_attr(n, "type");
     Props p = props(n);
@@ -1033,6 +1146,8 @@ std::shared_ptr<Texture> Importer::build_texture(xml_node n) {
         auto c1 = get_texture(p, "color1", Color(0.2f));
         const glm::mat3 uvm = get_uv_transform(p);
         t = make_checkerboard_texture(std::move(c0), std::move(c1), uvm * flip);
+    } else if (type == "scale") {
+        t = scale_texture(n, p);
     } else {
         unsupported(n, "unsupported texture type '" + type + "'", "uses grey 0.5");
         for (auto& [name, c] : p.named) p.used.insert(c.internal_object());

@@ -1,6 +1,7 @@
 #include "gdr/scene/scene.h"
 
 #include <algorithm>
+#include <bit>
 #include <mutex>
 
 #include <embree3/rtcore.h>
@@ -713,7 +714,24 @@ bool Scene::cut_out(uint32_t prim, float b1, float b2) const {
     } else if (mesh_.uvs.empty()) {
         uv = Vec2(b1, b2);
     }
-    return luminance(m.opacity->eval(uv)) < 0.5f;
+    const float opacity = luminance(m.opacity->eval(uv));
+    if (opacity >= 1.f) return false;
+    if (opacity <= 0.f) return true;
+    // Stochastic pass-through with probability 1 - opacity, decided by a hash
+    // of the hit point (triangle and barycentrics): the same ray meets the
+    // same decision whenever it is traced (an intersection and an occlusion
+    // query agree, a shift and its inverse see the same surface), and over
+    // the many points of a pixel the surface transmits 1 - opacity on average.
+    uint64_t h = (uint64_t(prim) << 32) ^ (uint64_t(std::bit_cast<uint32_t>(b1)) << 16) ^
+                 uint64_t(std::bit_cast<uint32_t>(b2));
+    // SplitMix64's finaliser (Steele, Lea and Flood, "Fast splittable
+    // pseudorandom number generators", 2014): every input bit reaches every output bit.
+    h += 0x9e3779b97f4a7c15ull;
+    h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ull;
+    h = (h ^ (h >> 27)) * 0x94d049bb133111ebull;
+    h ^= h >> 31;
+    const float u = float(h >> 40) * 0x1p-24f;
+    return u >= opacity;
 }
 
 float Scene::light_pdf_a(uint32_t prim) const {

@@ -127,6 +127,27 @@ private:
     glm::mat3 m_;
 };
 
+/// A texture times a constant colour.
+class ScaledTexture final : public Texture {
+public:
+    ScaledTexture(std::shared_ptr<Texture> inner, const Color& scale)
+        : inner_(std::move(inner)), scale_(scale), mean_(inner_->mean() * scale) {}
+    Color eval(const Vec2& uv) const override { return inner_->eval(uv) * scale_; }
+    Color mean() const override { return mean_; }
+    bool is_constant() const override { return inner_->is_constant(); }
+
+private:
+    std::shared_ptr<Texture> inner_;
+    Color scale_, mean_;
+};
+
+/// The decoding of an 8-bit value v / 255 into a linear one by the options:
+/// a power law when gamma is given, else sRGB or the value itself.
+float decode_8bit(float v, const ImageTextureOptions& o) {
+    if (o.gamma > 0.f) return std::pow(v, o.gamma);
+    return o.srgb ? srgb_to_linear(v) : v;
+}
+
 /// The pixels of an image file as floats, `channels` per pixel (stb's
 /// conversion), and the number of channels the file itself has.
 struct Pixels {
@@ -176,7 +197,7 @@ std::shared_ptr<Texture> load_image_texture(const std::string& path, const Color
 std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options) {
     const Pixels p = read_pixels(path, 3);
     std::array<float, 256> lut;
-    for (int i = 0; i < 256; ++i) lut[i] = options.srgb ? srgb_to_linear(float(i) / 255.f) : float(i) / 255.f;
+    for (int i = 0; i < 256; ++i) lut[i] = decode_8bit(float(i) / 255.f, options);
     Image img(p.w, p.h, 3);
     float* dst = img.data();
     for (size_t i = 0; i < p.v.size(); ++i) dst[i] = p.hdr ? p.v[i] : lut[size_t(std::lround(p.v[i] * 255.f))];
@@ -194,7 +215,7 @@ std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const Ima
         if (alpha) {
             o = px[3];
         } else {
-            const auto lin = [&](float c) { return p.hdr || !options.srgb ? c : srgb_to_linear(c); };
+            const auto lin = [&](float c) { return p.hdr ? c : decode_8bit(c, options); };
             o = luminance(Color(lin(px[0]), lin(px[1]), lin(px[2])));
         }
         dst[3 * i] = dst[3 * i + 1] = dst[3 * i + 2] = o;
@@ -206,6 +227,12 @@ std::shared_ptr<Texture> make_checkerboard_texture(std::shared_ptr<Texture> c0, 
                                                    const glm::mat3& m) {
     if (!c0 || !c1) throw ParameterError("checkerboard texture: both colours are needed");
     return std::make_shared<CheckerboardTexture>(std::move(c0), std::move(c1), m);
+}
+
+std::shared_ptr<Texture> make_scaled_texture(std::shared_ptr<Texture> inner, const Color& scale) {
+    if (!inner) throw ParameterError("scaled texture: no texture given");
+    if (!is_finite(scale)) throw ParameterError("scaled texture: the scale must be finite");
+    return std::make_shared<ScaledTexture>(std::move(inner), scale);
 }
 
 std::shared_ptr<Texture> make_uv_transformed_texture(std::shared_ptr<Texture> inner, const glm::mat3& m) {

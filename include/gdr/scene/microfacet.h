@@ -134,6 +134,94 @@ inline Color fresnel_schlick(const Color& f0, float cos_theta) {
     return f0 + (Color(1.f) - f0) * c5;
 }
 
+/// The microfacet normal distributions gdr renders; both take an alpha of the
+/// same meaning for narrow lobes (the RMS slope), so they share the
+/// equivalent roughness the shift mappings read.
+enum class MicrofacetType {
+    GGX,       ///< Trowbridge-Reitz (Walter et al. 2007), sampled through visible normals.
+    Beckmann,  ///< Beckmann (Walter et al. 2007, eq. 25), sampled by D(m) cos(theta_m).
+};
+
+/// Beckmann normal distribution D(m) (1/sr), normalised like ggx_d:
+/// exp(-tan^2 / alpha^2) / (pi alpha^2 cos^4) (Walter et al. 2007, eq. 25).
+inline float beckmann_d(const Vec3& m, float alpha) {
+    if (m.z <= 0.f) return 0.f;
+    const float cos2 = m.z * m.z;
+    const float tan2 = std::max(0.f, 1.f - cos2) / cos2;
+    const float a2 = alpha * alpha;
+    return std::exp(-tan2 / a2) / (kPi * a2 * cos2 * cos2);
+}
+
+/// Smith Lambda(w) for Beckmann (Heitz 2014, eq. 80, exact through erf):
+/// with a = 1 / (alpha tan theta), Lambda = (erf(a) - 1) / 2 + exp(-a^2) / (2 a sqrt(pi)),
+/// computed through erfc to keep its precision where Lambda is small.
+inline float beckmann_lambda(const Vec3& w, float alpha) {
+    const float cos2 = w.z * w.z;
+    if (cos2 <= 0.f) return kInf;
+    const float tan = std::sqrt(std::max(0.f, 1.f - cos2) / cos2);
+    if (tan <= 0.f) return 0.f;
+    const float a = 1.f / (alpha * tan);
+    if (a > 6.f) return 0.f;  // below float resolution of the difference
+    return 0.5f * (std::exp(-a * a) / (a * std::sqrt(kPi)) - std::erfc(a));
+}
+
+/// Samples a Beckmann microfacet normal with density D(m) cos(theta_m)
+/// (Walter et al. 2007, eqs. 28 and 29): tan^2 = -alpha^2 log(1 - u.x); u in [0,1)^2.
+inline Vec3 beckmann_sample_normal(float alpha, const Vec2& u) {
+    const float tan2 = -alpha * alpha * std::log(std::max(1.f - u.x, 1e-30f));
+    const float cos_t = 1.f / std::sqrt(1.f + tan2);
+    const float sin_t = std::sqrt(std::max(0.f, 1.f - cos_t * cos_t));
+    const float phi = 2.f * kPi * u.y;
+    return {sin_t * std::cos(phi), sin_t * std::sin(phi), cos_t};
+}
+
+/// One microfacet distribution of either type, with what the BSDFs need of it:
+/// D, Smith masking, normal sampling and its density. GGX samples visible
+/// normals; Beckmann samples D(m) cos(theta_m), the classic scheme, whose
+/// normals may face away from wo: callers reject those (sample_normal_pdf
+/// is the density of every normal drawn, back-facing ones included).
+struct Microfacet {
+    MicrofacetType type = MicrofacetType::GGX;  ///< Which distribution.
+    float alpha = 0.1f;                         ///< Roughness (>= kMinGgxAlpha).
+
+    /// D(m) (1/sr).
+    float d(const Vec3& m) const { return type == MicrofacetType::GGX ? ggx_d(m, alpha) : beckmann_d(m, alpha); }
+    /// Smith Lambda(w), unitless.
+    float lambda(const Vec3& w) const {
+        return type == MicrofacetType::GGX ? ggx_lambda(w, alpha) : beckmann_lambda(w, alpha);
+    }
+    /// Height-correlated Smith G2 (as smith_g2), unitless in [0,1].
+    float g2(const Vec3& wo, const Vec3& wi, const Vec3& m) const {
+        if (glm::dot(wo, m) * wo.z <= 0.f || glm::dot(wi, m) * wi.z <= 0.f) return 0.f;
+        return 1.f / (1.f + lambda(wo) + lambda(wi));
+    }
+    /// A microfacet normal for wo (upper hemisphere); u in [0,1)^2.
+    Vec3 sample_normal(const Vec3& wo, const Vec2& u) const {
+        return type == MicrofacetType::GGX ? ggx_sample_visible_normal(wo, alpha, u) : beckmann_sample_normal(alpha, u);
+    }
+    /// Solid-angle density of sample_normal producing m (1/sr); for GGX
+    /// zero where m faces away from wo.
+    float sample_normal_pdf(const Vec3& wo, const Vec3& m) const {
+        if (type == MicrofacetType::GGX) return ggx_visible_normal_pdf(wo, m, alpha);
+        return beckmann_d(m, alpha) * std::max(0.f, m.z);
+    }
+    /// Value and density of a reflection wo -> wi about h = normalize(wo + wi),
+    /// as ggx_reflection (both upper hemisphere, else all 0); the density
+    /// counts only normals that face wo, the ones the BSDFs keep.
+    GgxReflection reflection(const Vec3& wo, const Vec3& wi) const {
+        if (type == MicrofacetType::GGX) return ggx_reflection(wo, wi, alpha);
+        GgxReflection r;
+        if (wo.z <= 0.f || wi.z <= 0.f) return r;
+        r.h = glm::normalize(wo + wi);
+        const float cos_oh = glm::dot(wo, r.h);
+        if (cos_oh <= 0.f) return r;
+        const float D = beckmann_d(r.h, alpha);
+        r.value = D * g2(wo, wi, r.h) / (4.f * wo.z * wi.z);
+        r.pdf = D * r.h.z / (4.f * cos_oh);
+        return r;
+    }
+};
+
 /// Exact unpolarised Fresnel reflectance (unitless in [0,1]) of a smooth
 /// dielectric interface. cos_i = cosine of the incident direction with the
 /// normal on its own side (> 0); eta = eta_transmitted / eta_incident.

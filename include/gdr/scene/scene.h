@@ -20,8 +20,11 @@ struct Material {
     std::string name;             ///< Name from the MTL file.
     std::shared_ptr<Bsdf> bsdf;   ///< Scattering (never null).
     Color emission{0.f};          ///< Emitted radiance, W/(m^2 sr), front side (CCW winding) only.
-    /// Alpha cut-out (Mitsuba's mask): rays pass through the surface where the
-    /// luminance of opacity(uv) is below 1/2; null for an opaque surface.
+    /// Opacity (Mitsuba's mask): a ray passes through the surface with
+    /// probability 1 - luminance(opacity(uv)), decided by a hash of the hit
+    /// point, so the same ray always meets the same decision (shifts stay
+    /// reversible) and an opacity of 0 or 1 is an exact cut-out; null for an
+    /// opaque surface.
     std::shared_ptr<Texture> opacity = nullptr;
     /// bsdf->min_roughness() and bsdf->is_pure_delta(), filled in by the Scene:
     /// shift mappings classify every vertex they visit, and a field read is

@@ -44,6 +44,9 @@ enum class TextureWrap {
 struct ImageTextureOptions {
     Color scale{1.f};                        ///< Factor on every texel (unitless).
     bool srgb = true;                        ///< Decode 8-bit files from sRGB; false takes the stored values as linear.
+    /// A power law instead: linear = stored^gamma for 8-bit files (Mitsuba's
+    /// bitmap `gamma`); 0 keeps `srgb`'s choice. Float files (.hdr, .exr) are linear.
+    float gamma = 0.f;
     TextureWrap wrap = TextureWrap::Repeat;  ///< Lookups outside [0, 1).
     bool nearest = false;                    ///< The nearest texel instead of bilinear interpolation.
 };
@@ -62,6 +65,9 @@ std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const Ima
 /// elsewhere (Mitsuba's checkerboard); c0 and c1 are looked up at uv itself.
 std::shared_ptr<Texture> make_checkerboard_texture(std::shared_ptr<Texture> c0, std::shared_ptr<Texture> c1,
                                                    const glm::mat3& m = glm::mat3(1.f));
+
+/// `inner` times `scale` (Mitsuba's `scale` texture); its mean is inner's times scale.
+std::shared_ptr<Texture> make_scaled_texture(std::shared_ptr<Texture> inner, const Color& scale);
 
 /// `inner` looked up at an affine map of uv: eval(uv) = inner->eval((m * (u, v, 1)).xy),
 /// e.g. a texture's scale, offset or rotation in uv. Its mean is inner's.

@@ -14,30 +14,36 @@ constexpr float kDeltaTolerance = 1e-3f;
 /// Reflects with probability F and refracts with probability 1 - F, so the
 /// throughput f |cos| / pdf is 1 for reflection and 1/eta_rel^2 for refraction
 /// (radiance is compressed into the smaller solid angle of the denser side).
+/// A tint (specular_reflectance / specular_transmittance) multiplies the
+/// lobe's weight only: the lobe probabilities stay F and 1 - F.
 class Dielectric final : public Bsdf {
 public:
-    explicit Dielectric(float eta) : eta_(eta) {}
+    Dielectric(float eta, std::shared_ptr<Texture> r, std::shared_ptr<Texture> t)
+        : eta_(eta), r_(std::move(r)), t_(std::move(t)) {}
 
-    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2&, float u_lobe, const Vec2&) const override {
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float u_lobe, const Vec2&) const override {
         if (wo.z == 0.f) return std::nullopt;
         const Geometry g = geometry(wo);
-        if (u_lobe < g.F) return reflection(wo, g);
-        return transmission(wo, g);
+        if (u_lobe < g.F) return tinted(reflection(wo, g), r_, uv);
+        return tinted(transmission(wo, g), t_, uv);
     }
 
     Color eval(const Vec3&, const Vec3&, const Vec2&) const override { return Color(0.f); }
     float pdf(const Vec3&, const Vec3&, const Vec2&) const override { return 0.f; }
 
-    std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+    std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (wo.z == 0.f || wi.z == 0.f) return std::nullopt;
         const Geometry g = geometry(wo);
-        auto s = same_hemisphere(wo, wi) ? reflection(wo, g) : transmission(wo, g);
+        const bool refl = same_hemisphere(wo, wi);
+        auto s = refl ? reflection(wo, g) : transmission(wo, g);
         if (!s || glm::length(s->wi - wi) > kDeltaTolerance) return std::nullopt;
-        return s;
+        return tinted(s, refl ? r_ : t_, uv);
     }
 
     uint32_t flags() const override { return kReflection | kTransmission | kSpecular; }
-    Color albedo(const Vec2&) const override { return Color(1.f); }
+    Color albedo(const Vec2& uv) const override {
+        return 0.5f * ((r_ ? r_->eval(uv) : Color(1.f)) + (t_ ? t_->eval(uv) : Color(1.f)));
+    }
     float min_roughness() const override { return 0.f; }
     float eta() const override { return eta_; }
 
@@ -80,15 +86,25 @@ private:
         return s;
     }
 
+    static std::optional<BsdfSample> tinted(std::optional<BsdfSample> s, const std::shared_ptr<Texture>& tint,
+                                            const Vec2& uv) {
+        if (s && tint) s->f *= tint->eval(uv);
+        return s;
+    }
+
     float eta_;
+    std::shared_ptr<Texture> r_, t_;  // tints of reflection and transmission; null = 1
 };
 
 }  // namespace
 
-std::shared_ptr<Bsdf> make_dielectric(float eta) {
+std::shared_ptr<Bsdf> make_dielectric(float eta) { return make_dielectric(eta, nullptr, nullptr); }
+
+std::shared_ptr<Bsdf> make_dielectric(float eta, std::shared_ptr<Texture> reflectance,
+                                      std::shared_ptr<Texture> transmittance) {
     if (!(eta > 0.f) || !std::isfinite(eta))
         throw ParameterError("dielectric: index of refraction must be a positive number, got " + std::to_string(eta));
-    return std::make_shared<Dielectric>(eta);
+    return std::make_shared<Dielectric>(eta, std::move(reflectance), std::move(transmittance));
 }
 
 }  // namespace gdr

@@ -1,6 +1,6 @@
 // Diffuse + glossy mixture for MTL Kd + Ks materials, two-sided.
 // f = kd(uv) / pi + ks * D G2 / (4 cos_o cos_i): a Lambertian base plus an
-// uncoupled GGX reflection lobe whose Fresnel is 1 (Ks already is the
+// uncoupled GGX (or Beckmann) reflection lobe whose Fresnel is 1 (Ks already is the
 // reflectance an MTL author asked for). Not energy-coupled like a layered
 // model; instead both weights are scaled so that kd_mean + ks <= 1 per channel.
 #include "gdr/core/error.h"
@@ -17,7 +17,7 @@ namespace {
 /// which keeps f and pdf identical to eval() and pdf().
 class Plastic final : public Bsdf {
 public:
-    Plastic(std::shared_ptr<Texture> kd, const Color& ks, float alpha) : kd_(std::move(kd)), alpha_(alpha) {
+    Plastic(std::shared_ptr<Texture> kd, const Color& ks, Microfacet mf) : kd_(std::move(kd)), mf_(mf) {
         const Color kd_mean = kd_->mean();
         const float m = max_component(kd_mean + ks);
         scale_ = m > 1.f ? 1.f / m : 1.f;  // albedo <= 1 for the mean texel
@@ -45,12 +45,14 @@ public:
             s.lobe = kReflection | kDiffuse;
             s.roughness = 1.f;
         } else {
-            wi_up = reflect(wo_up, ggx_sample_visible_normal(wo_up, alpha_, u));
+            const Vec3 m = mf_.sample_normal(wo_up, u);
+            if (glm::dot(wo_up, m) <= 0.f) return std::nullopt;  // Beckmann's D cos sampling only
+            wi_up = reflect(wo_up, m);
             s.lobe = kReflection | kGlossy;
-            s.roughness = alpha_;
+            s.roughness = mf_.alpha;
         }
         if (wi_up.z <= 0.f) return std::nullopt;
-        const GgxReflection g = ggx_reflection(wo_up, wi_up, alpha_);
+        const GgxReflection g = mf_.reflection(wo_up, wi_up);
         s.pdf = pdf_up(g, wi_up);
         if (!(s.pdf > 0.f)) return std::nullopt;
         s.f = eval_up(g, uv);
@@ -61,24 +63,24 @@ public:
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return Color(0.f);
-        return eval_up(ggx_reflection(up(wo), up(wi), alpha_), uv);
+        return eval_up(mf_.reflection(up(wo), up(wi)), uv);
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
         if (!same_hemisphere(wo, wi)) return 0.f;
-        return pdf_up(ggx_reflection(up(wo), up(wi), alpha_), up(wi));
+        return pdf_up(mf_.reflection(up(wo), up(wi)), up(wi));
     }
 
     BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return {};
         const Vec3 wi_up = up(wi);
-        const GgxReflection g = ggx_reflection(up(wo), wi_up, alpha_);
+        const GgxReflection g = mf_.reflection(up(wo), wi_up);
         return {eval_up(g, uv), pdf_up(g, wi_up)};
     }
 
     uint32_t flags() const override { return kReflection | kDiffuse | kGlossy; }
     Color albedo(const Vec2& uv) const override { return kd_->eval(uv) * scale_ + ks_; }
-    float min_roughness() const override { return std::min(alpha_, 1.f); }
+    float min_roughness() const override { return std::min(mf_.alpha, 1.f); }
 
 private:
     static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
@@ -94,18 +96,18 @@ private:
 
     std::shared_ptr<Texture> kd_;
     Color ks_;
-    float alpha_;
+    Microfacet mf_;
     float scale_ = 1.f;
     float p_diffuse_ = 1.f;
 };
 
 }  // namespace
 
-std::shared_ptr<Bsdf> make_plastic(std::shared_ptr<Texture> kd, const Color& ks, float alpha) {
+std::shared_ptr<Bsdf> make_plastic(std::shared_ptr<Texture> kd, const Color& ks, float alpha, MicrofacetType type) {
     if (!std::isfinite(alpha) || alpha < 0.f)
         throw ParameterError("plastic: alpha must be a non-negative number, got " + std::to_string(alpha));
     if (!kd) kd = make_constant_texture(Color(0.f));
-    return std::make_shared<Plastic>(std::move(kd), ks, std::max(alpha, kMinGgxAlpha));
+    return std::make_shared<Plastic>(std::move(kd), ks, Microfacet{type, std::max(alpha, kMinGgxAlpha)});
 }
 
 }  // namespace gdr

@@ -1,5 +1,7 @@
-// Rough conductor: GGX microfacet reflection with Schlick Fresnel, two-sided.
-// f = F(wi.h) D(h) G2(wo, wi) / (4 cos_o cos_i), G2 height-correlated Smith.
+// Rough conductor: GGX or Beckmann microfacet reflection with Schlick
+// Fresnel, two-sided. f = F(wi.h) D(h) G2(wo, wi) / (4 cos_o cos_i), G2
+// height-correlated Smith, optionally times a reflectance texture (Mitsuba's
+// specular_reflectance).
 #include "gdr/core/error.h"
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/microfacet.h"
@@ -7,71 +9,79 @@
 namespace gdr {
 namespace {
 
-/// Metal with normal-incidence reflectance f0 (MTL Ks) and GGX roughness alpha;
-/// sampled through visible normals, so the only lost samples are reflections
-/// that end below the horizon (the energy lost to single-scattering masking).
+/// Metal with normal-incidence reflectance f0 (MTL Ks) and roughness alpha.
+/// GGX is sampled through visible normals, so the only lost samples are
+/// reflections that end below the horizon (the energy lost to
+/// single-scattering masking); Beckmann by D cos, which also loses normals
+/// facing away from wo.
 class RoughConductor final : public Bsdf {
 public:
-    RoughConductor(const Color& f0, float alpha) : f0_(f0), alpha_(alpha) {}
+    RoughConductor(const Color& f0, Microfacet mf, std::shared_ptr<Texture> tint)
+        : f0_(f0), mf_(mf), tint_(std::move(tint)) {}
 
-    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2&, float, const Vec2& u) const override {
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
         if (wo.z == 0.f) return std::nullopt;
         const float side = wo.z > 0.f ? 1.f : -1.f;  // two-sided: work with wo mirrored above
         const Vec3 wo_up(wo.x, wo.y, std::abs(wo.z));
-        const Vec3 m = ggx_sample_visible_normal(wo_up, alpha_, u);
+        const Vec3 m = mf_.sample_normal(wo_up, u);
+        if (glm::dot(wo_up, m) <= 0.f) return std::nullopt;
         const Vec3 wi_up = reflect(wo_up, m);
         if (wi_up.z <= 0.f) return std::nullopt;
-        const GgxReflection g = ggx_reflection(wo_up, wi_up, alpha_);
+        const GgxReflection g = mf_.reflection(wo_up, wi_up);
         if (!(g.pdf > 0.f)) return std::nullopt;
         BsdfSample s;
         s.wi = Vec3(wi_up.x, wi_up.y, side * wi_up.z);
-        s.f = value(g, wi_up);
+        s.f = value(g, wi_up, uv);
         s.pdf = g.pdf;
         s.eta = 1.f;
         s.lobe = kReflection | kGlossy;
-        s.roughness = alpha_;
+        s.roughness = mf_.alpha;
         return s;
     }
 
-    Color eval(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+    Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return Color(0.f);
-        return value(ggx_reflection(up(wo), up(wi), alpha_), up(wi));
+        return value(mf_.reflection(up(wo), up(wi)), up(wi), uv);
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
         if (!same_hemisphere(wo, wi)) return 0.f;
-        return ggx_reflection_pdf(up(wo), up(wi), alpha_);
+        return mf_.reflection(up(wo), up(wi)).pdf;
     }
 
-    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
+    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
         if (!same_hemisphere(wo, wi)) return {};
-        const GgxReflection g = ggx_reflection(up(wo), up(wi), alpha_);
-        return {value(g, up(wi)), g.pdf};
+        const GgxReflection g = mf_.reflection(up(wo), up(wi));
+        return {value(g, up(wi), uv), g.pdf};
     }
 
     uint32_t flags() const override { return kReflection | kGlossy; }
-    Color albedo(const Vec2&) const override { return f0_; }
-    float min_roughness() const override { return alpha_; }
+    Color albedo(const Vec2& uv) const override { return tint_ ? f0_ * tint_->eval(uv) : f0_; }
+    float min_roughness() const override { return mf_.alpha; }
 
 private:
     static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
 
-    // The BSDF value of a reflection wo -> wi_up (upper hemisphere) with GGX terms g.
-    Color value(const GgxReflection& g, const Vec3& wi_up) const {
+    // The BSDF value of a reflection wo -> wi_up (upper hemisphere) with microfacet terms g.
+    Color value(const GgxReflection& g, const Vec3& wi_up, const Vec2& uv) const {
         if (g.value <= 0.f) return Color(0.f);
-        return fresnel_schlick(f0_, glm::dot(wi_up, g.h)) * g.value;
+        const Color f = fresnel_schlick(f0_, glm::dot(wi_up, g.h)) * g.value;
+        return tint_ ? f * tint_->eval(uv) : f;
     }
 
     Color f0_;
-    float alpha_;
+    Microfacet mf_;
+    std::shared_ptr<Texture> tint_;  // specular reflectance texture; null = 1
 };
 
 }  // namespace
 
-std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha) {
+std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha, MicrofacetType type,
+                                           std::shared_ptr<Texture> reflectance) {
     if (!std::isfinite(alpha) || alpha < 0.f)
         throw ParameterError("roughconductor: alpha must be a non-negative number, got " + std::to_string(alpha));
-    return std::make_shared<RoughConductor>(f0, std::max(alpha, kMinGgxAlpha));
+    return std::make_shared<RoughConductor>(f0, Microfacet{type, std::max(alpha, kMinGgxAlpha)},
+                                            std::move(reflectance));
 }
 
 }  // namespace gdr
