@@ -155,6 +155,9 @@ protected:
         if (scene.environment())
             throw ParameterError("gbdpt: scenes with an environment light are not supported (a vertex at infinity "
                                  "cannot be reconnected to); render them with bdpt or gpt");
+        if (!scene.delta_lights().empty())
+            throw ParameterError("gbdpt: scenes with point, spot or directional lights are not supported yet (light "
+                                 "subpaths that start on a delta light are not shifted); render them with bdpt or gpt");
     }
 
     std::vector<SlotSpec> slots() const override {

@@ -393,6 +393,7 @@ private:
     void integrator(xml_node n);
     void shape(xml_node n);
     void emitter(xml_node n);
+    void delta_emitter(xml_node n, const std::string& type);
     uint32_t material_for(const std::shared_ptr<BuiltBsdf>& b, const Color& emission, const std::string& shape_name,
                           xml_node at);
     void add_triangles(const std::vector<Vec3>& p, std::vector<Vec3> nrm, const std::vector<Vec2>& uv, const Mat4& xf,
@@ -417,6 +418,7 @@ private:
     std::vector<std::string> warnings_;
     std::vector<std::string> inputs_;
     std::shared_ptr<Environment> environment_;  // a constant or envmap emitter, if any
+    std::vector<DeltaLight> delta_lights_;      // point, spot and directional emitters
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     std::vector<MeshStats> stats_;
@@ -1406,8 +1408,62 @@ void Importer::emitter(xml_node n) {
         warn(n, "sun and sky emitters are not supported; skipped (--lenient), so only the other lights light the scene");
         return;
     }
+    if (type == "point" || type == "spot" || type == "directional") {
+        delta_emitter(n, type);
+        return;
+    }
     if (type == "area") fail(n, "an area emitter belongs inside a <shape>");
-    unsupported(n, "emitter type '" + type + "' (gdr renders area lights only)", "skips it");
+    unsupported(n, "emitter type '" + type + "' (gdr renders area, environment, point, spot and directional lights)",
+                "skips it");
+}
+
+// Mitsuba's delta emitters (its documentation of `point`, `spot` and
+// `directional`): a point or spot light sits at to_world's origin (or
+// `position`), a spot looks along to_world's +z with `cutoff_angle` (20
+// degrees) and `beam_width` (3/4 of the cutoff) in degrees, its radiant
+// `intensity` in W/sr; a directional light travels along to_world's +z (or
+// `direction`), its `irradiance` in W/m^2.
+void Importer::delta_emitter(xml_node n, const std::string& type) {
+    Props p = props(n);
+    ignore(p, {"sampling_weight"});  // how often it is sampled, not the image
+    const Mat4 xf = get_transform(p, "to_world");
+    DeltaLight l;
+    const auto colour = [&](const char* name) {
+        if (xml_node t = take(p, name); t) {
+            const std::string tag = t.name();
+            if (tag == "texture" || tag == "ref")
+                fail(t, "a texture for the " + type + " emitter's '" + name + "' is not supported (give a colour)");
+            const Color c = colour_of(t);
+            if (!is_finite(c) || c.r < 0.f || c.g < 0.f || c.b < 0.f)
+                fail(t, std::string("'") + name + "' must be finite and non-negative");
+            return c;
+        }
+        return Color(1.f);
+    };
+    if (type == "directional") {
+        l.kind = DeltaLight::Kind::Directional;
+        l.direction = get_point(p, "direction", Vec3(xf * glm::vec4(0.f, 0.f, 1.f, 0.f)));
+        l.intensity = colour("irradiance");
+    } else {
+        l.kind = type == "point" ? DeltaLight::Kind::Point : DeltaLight::Kind::Spot;
+        l.position = get_point(p, "position", Vec3(xf * glm::vec4(0.f, 0.f, 0.f, 1.f)));
+        l.intensity = colour("intensity");
+        if (type == "spot") {
+            if (xml_node t = take(p, "texture"); t)
+                fail(t, "a spot emitter's projected 'texture' is not supported (remove it to light with the spot's intensity)");
+            l.direction = Vec3(xf * glm::vec4(0.f, 0.f, 1.f, 0.f));
+            const float cutoff = get_float(p, "cutoff_angle", 20.f);
+            const float beam = get_float(p, "beam_width", 0.75f * cutoff);
+            if (!(cutoff > 0.f && cutoff <= 180.f)) fail(n, "the spot's 'cutoff_angle' must be in (0, 180] degrees");
+            if (!(beam > 0.f)) fail(n, "the spot's 'beam_width' must be positive");
+            // Mitsuba's falloff is full intensity wherever the beam is at least as wide as the cutoff.
+            l.cutoff = glm::radians(cutoff), l.beam_width = glm::radians(std::min(beam, cutoff));
+        }
+    }
+    finish(p);
+    if (l.kind != DeltaLight::Kind::Point && !(glm::length(l.direction) > 0.f))
+        fail(n, "the " + type + " emitter's direction is zero");
+    delta_lights_.push_back(l);
 }
 
 SceneFile Importer::run() {
@@ -1466,6 +1522,7 @@ SceneFile Importer::run() {
     sf.meshes = std::move(stats_);
     sf.scene = std::make_unique<Scene>(std::move(mesh_), std::move(materials_), camera, path_);
     if (environment_) sf.scene->set_environment(std::move(environment_));
+    if (!delta_lights_.empty()) sf.scene->set_delta_lights(std::move(delta_lights_), path_);
     std::set<std::string> seen;
     for (std::string& f : inputs_)
         if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
