@@ -389,6 +389,19 @@ TEST_CASE("delta lights: scene files give point, spot and directional lights, an
         CHECK(l[2].intensity == Color(4.f));
         CHECK(sf.scene->has_lights());
     }
+    {
+        // An animation's frames all get the lights.
+        std::ofstream(dir("anim.json"))
+            << R"({"camera": {"position": [0, 0, 3], "target": [0, 0, 0], "up": [0, 1, 0], "fov": 40, "width": 8, "height": 8},
+                   "meshes": ["tri.obj"], "animation": {"first": 0, "last": 2, "fps": 24},
+                   "lights": [{"type": "spot", "position": [0, 2, 0], "direction": [0, -3, 0], "intensity": 2}]})";
+        const SceneFile sf = load_scene_file(dir("anim.json"));
+        REQUIRE(sf.animation);
+        const auto frame = sf.animation->scene_at(2.0);
+        REQUIRE(frame->delta_lights().size() == 1);
+        CHECK(frame->delta_lights()[0].direction == Vec3(0, -1, 0));
+        CHECK(sf.scene->delta_lights().size() == 1);
+    }
     CHECK_THROWS_WITH(load_scene_file(json_scene(R"([{"type": "area"}])")), Catch::Contains("lights[0].type"));
     CHECK_THROWS_WITH(load_scene_file(json_scene(R"([{"type": "point", "position": [0, 0, 0]}])")),
                       Catch::Contains("needs 'intensity'"));
@@ -445,4 +458,38 @@ TEST_CASE("delta lights: Mitsuba's point, spot and directional emitters import w
                       Catch::Contains("scene.xml:") && Catch::Contains("'texture' is not supported"));
     CHECK_THROWS_WITH(load_scene_file(xml(R"(<emitter type="directional"><vector name="direction" x="0" y="0" z="0"/></emitter>)")),
                       Catch::Contains("direction is zero"));
+}
+
+TEST_CASE("delta lights: tgpt's primal and gradients equal pt's on a point-lit box", "[delta_lights][tgpt][statistical]") {
+    // tgpt's halves are gpt's estimator with the shared light position: its
+    // primal (both halves) against pt's image and E[dx] against pt's pixel
+    // differences, the same block z-tests as gpt's (24 x 24 pixels, 6 x 6
+    // blocks, 16 runs; |z| < 4.5 and 5), rejecting a 5% darker primal and
+    // the negated gradients.
+    const int res = 24, block = 6, runs = 16;
+    const auto scene = lit_box(res, {box_point()});
+    const std::vector<FrameBuffer> pt = render_runs(*scene, "pt", Params(), 128, runs, 1000);
+    const std::vector<FrameBuffer> g =
+        render_runs(*scene, "tgpt", params({{"shift", "half-vector"}, {"reconstruct", "none"}}), 24, runs, 1);
+    const BlockStats ref = grey_stats(pt, "color", block), primal = grey_stats(g, "primal", block);
+    const double zp = max_z(primal, ref), zp_dark = max_z(scaled(primal, 0.95), ref);
+    const BlockStats ref_dx = block_stats(runs, res, res, block, [&](int r, auto&& add) {
+        const Image& c = pt[r].get("color");
+        for (int y = 0; y < res; ++y)
+            for (int x = 0; x + 1 < res; ++x) add(x, y, grey(c, x + 1, y) - grey(c, x, y));
+    });
+    const BlockStats dx = block_stats(runs, res, res, block, [&](int r, auto&& add) {
+        const Image& d = g[r].get("dx");
+        const Image& e = g[r].get("direct");
+        for (int y = 0; y < res; ++y)
+            for (int x = 0; x + 1 < res; ++x) add(x, y, grey(d, x, y) + grey(e, x + 1, y) - grey(e, x, y));
+    });
+    BlockStats neg = dx;
+    for (double& m : neg.mean) m = -m;
+    const double zx = max_z(dx, ref_dx), z_neg = max_z(neg, ref_dx);
+    CAPTURE(zp, zp_dark, zx, z_neg);
+    CHECK(zp < 4.5);
+    CHECK(zp_dark > 4.5);
+    CHECK(zx < 5.0);
+    CHECK(z_neg > 5.0);
 }

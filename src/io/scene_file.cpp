@@ -862,8 +862,6 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     if (j.contains("environment")) env = parse_environment(path, j["environment"], inputs);
     std::vector<DeltaLight> lights;
     if (j.contains("lights")) lights = parse_lights(path, j["lights"]);
-    if (!lights.empty() && range)
-        fail(path, "'lights' (point, spot, directional) are not supported in animated scenes yet");
     if (any_keys && !range)
         fail(path, "the scene has keys but no 'animation' block giving its frames ({\"first\": 0, \"last\": 47, "
                    "\"fps\": 24})");
@@ -885,6 +883,7 @@ static SceneFile load_scene_file_impl(const std::string& path) {
         }
         sf.animation = std::make_shared<AnimatedScene>(std::move(objects), std::move(materials), cd,
                                                        std::move(camera_track), env, *range, path);
+        if (!lights.empty()) sf.animation->set_delta_lights(std::move(lights));
         sf.scene = sf.animation->scene_at(range->first);
         sf.frame = range->first;
     } else {

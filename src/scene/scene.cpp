@@ -660,7 +660,7 @@ void Scene::set_environment(std::shared_ptr<const Environment> env) {
     build_lights();
 }
 
-void Scene::set_delta_lights(std::vector<DeltaLight> lights, const std::string& origin) {
+void check_delta_lights(std::vector<DeltaLight>& lights, const std::string& origin) {
     for (size_t i = 0; i < lights.size(); ++i) {
         DeltaLight& l = lights[i];
         const std::string what = origin + ": light " + std::to_string(i) + ": ";
@@ -679,6 +679,10 @@ void Scene::set_delta_lights(std::vector<DeltaLight> lights, const std::string& 
             !(l.beam_width > 0.f && l.beam_width <= l.cutoff && l.cutoff <= kPi))
             throw InputError(what + "a spot needs 0 < beam width <= cutoff angle <= 180 degrees");
     }
+}
+
+void Scene::set_delta_lights(std::vector<DeltaLight> lights, const std::string& origin) {
+    check_delta_lights(lights, origin);
     delta_lights_ = std::move(lights);
     build_lights();
 }

@@ -104,6 +104,12 @@ inline bool zero_area_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2) {
     return !(len > 0.f) || !std::isfinite(len);
 }
 
+/// Checks delta lights as Scene::set_delta_lights() takes them and makes
+/// their directions unit vectors: InputError naming `origin` and the light's
+/// index on a non-finite or negative intensity, a non-finite position, a
+/// zero direction or a spot whose angles are not 0 < beam_width <= cutoff <= pi.
+void check_delta_lights(std::vector<DeltaLight>& lights, const std::string& origin);
+
 /// Counters gathered while loading (reported by the CLI).
 struct SceneStats {
     size_t triangles = 0;           ///< Triangles in the BVH.
