@@ -136,9 +136,9 @@ TEST_CASE("delta lights: a point, spot and directional light on a diffuse plane 
     // case also checks that a deliberately wrong expectation (a missing
     // cosine, 1/r instead of 1/r^2, the spot's falloff taken over the
     // cutoff angle instead of cutoff - beam width) is rejected by the same
-    // tolerance, so the comparison can fail; these wrong formulas, put into
-    // the integrator instead (connection.cpp without its cosine), gave
-    // worst errors of 40% and more.
+    // tolerance, so the comparison can fail. The integrator's light sample
+    // without the cosine at the surface gave worst errors of 81% (point),
+    // 6.3% (spot) and 5.4% (directional).
     const float rho = 0.6f;
     const int res = 16;
     const auto scene = plane(rho, res);
@@ -297,8 +297,10 @@ TEST_CASE("delta lights: gpt's gradients and primal equal pt's on a point- and a
     // the primal against pt's image: 24 x 24 pixels in 6 x 6 blocks, 16 runs
     // a side, |z| < 5 for the gradients, 4.5 for the primal; the negated
     // gradients and a 5% darker primal are rejected. Shown to fail with the
-    // offset's light Jacobian left at 1 (the light point shared as if in
-    // solid angle) and with the BSDF density kept in the delta light's MIS.
+    // offset's light Jacobian left at 1 (|z| of dx 30 to 82, of the primal
+    // 14 to 38, on both boxes and every shift) and, on the point box, with
+    // the offset's BSDF density kept in the delta light's MIS weight (dx z
+    // 13 to 15, primal z 58 to 66; the spot box did not reveal that one).
     const int res = 24, block = 6, runs = 16;
     for (const auto& lights : {std::vector<DeltaLight>{box_point()}, std::vector<DeltaLight>{box_spot()}}) {
         INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : "spot"));
@@ -344,7 +346,8 @@ TEST_CASE("delta lights: gpt's gradients and primal equal pt's on a point- and a
 TEST_CASE("delta lights: every built-in shift passes the validator on a point-lit box", "[delta_lights][gpt][shift]") {
     // The offsets' light Jacobian p_select lx^2 / (p_select ly^2) against the
     // finite differences of a small sphere light's solid angle; shown to fail
-    // (jacobian within tolerance for a minority) with the Jacobian left at 1.
+    // with the Jacobian left at 1 (55% of the Jacobians within tolerance,
+    // worst relative error 5.8).
     const auto scene = lit_box(32, {box_point()});
     for (const char* name : kShifts) {
         ValidateOptions opt;
