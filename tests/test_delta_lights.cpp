@@ -361,6 +361,11 @@ TEST_CASE("delta lights: every built-in shift passes the validator on a point-li
         CHECK(rep.reverse_ok == rep.reverse_checked);
         CHECK(rep.jacobian_worst_error < 0.1);
     }
+    // gbdpt and its validator refuse these lights by name.
+    const auto hv = shift_registry().create("half-vector", Params());
+    CHECK_THROWS_WITH(validate_bidirectional_shift(*scene, *hv, ShiftConfig{}, ValidateOptions{}),
+                      Catch::Contains("point, spot or directional"));
+    CHECK_THROWS_WITH(render(*scene, "gbdpt", Params(), 1, 1), Catch::Contains("point, spot or directional"));
 }
 
 TEST_CASE("delta lights: scene files give point, spot and directional lights, and refuse bad ones", "[delta_lights][io]") {
