@@ -155,6 +155,10 @@ protected:
         if (scene.environment())
             throw ParameterError("gbdpt: scenes with an environment light are not supported (a vertex at infinity "
                                  "cannot be reconnected to); render them with bdpt or gpt");
+        if (!scene.delta_lights().empty())
+            throw ParameterError("gbdpt: scenes with point, spot or directional lights are not supported yet (no camera "
+                                 "walk hits such a light, so the always-kept s = 0 strategy no longer keeps one for "
+                                 "every path); render them with bdpt or gpt");
     }
 
     std::vector<SlotSpec> slots() const override {

@@ -466,6 +466,7 @@ private:
     void shape(xml_node n, const Mat4& outer = Mat4(1.f));
     void instance(xml_node n, const Mat4& outer);
     void emitter(xml_node n);
+    void delta_emitter(xml_node n, const std::string& type);
     uint32_t material_for(const std::shared_ptr<BuiltBsdf>& b, const Color& emission, const std::string& shape_name,
                           xml_node at);
     void add_triangles(const std::vector<Vec3>& p, std::vector<Vec3> nrm, const std::vector<Vec2>& uv, const Mat4& xf,
@@ -497,6 +498,7 @@ private:
     int shape_elements_ = 0, emitter_elements_ = 0;                   // as written in the scene
     std::vector<std::string> inputs_;
     std::shared_ptr<Environment> environment_;  // a constant or envmap emitter, if any
+    std::vector<DeltaLight> delta_lights_;      // point, spot and directional emitters
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     std::vector<MeshStats> stats_;
@@ -1507,8 +1509,8 @@ void Importer::crease_normals(size_t first, float max_smooth_angle) {
 
 // The triangles reflected by mirror_, each with two corners swapped so that
 // its winding's normal stays the reflection of the original's (the front,
-// emitting side is kept); the normals are reflected too. The environment
-// was reflected where it was built.
+// emitting side is kept); the normals and the delta lights are reflected
+// too. The environment was reflected where it was built.
 void Importer::mirror_world() {
     const glm::mat3 w(mirror_);
     for (Vec3& q : mesh_.positions) q = Vec3(mirror_ * Vec4(q, 1.f));
@@ -1517,6 +1519,10 @@ void Importer::mirror_world() {
         std::swap(mesh_.positions[3 * t + 1], mesh_.positions[3 * t + 2]);
         if (!mesh_.normals.empty()) std::swap(mesh_.normals[3 * t + 1], mesh_.normals[3 * t + 2]);
         if (!mesh_.uvs.empty()) std::swap(mesh_.uvs[3 * t + 1], mesh_.uvs[3 * t + 2]);
+    }
+    for (DeltaLight& l : delta_lights_) {
+        l.position = Vec3(mirror_ * Vec4(l.position, 1.f));
+        l.direction = glm::normalize(w * l.direction);
     }
 }
 
@@ -1821,8 +1827,62 @@ void Importer::emitter(xml_node n) {
                 "sun and sky emitters are not supported; skipped (--lenient), so only the other lights light the scene");
         return;
     }
+    if (type == "point" || type == "spot" || type == "directional") {
+        delta_emitter(n, type);
+        return;
+    }
     if (type == "area") fail(n, "an area emitter belongs inside a <shape>");
-    unsupported(n, "emitter type '" + type + "' (gdr renders area lights only)", "skips it");
+    unsupported(n, "emitter type '" + type + "' (gdr renders area, environment, point, spot and directional lights)",
+                "skips it");
+}
+
+// Mitsuba's delta emitters (its documentation of `point`, `spot` and
+// `directional`): a point or spot light sits at to_world's origin (or
+// `position`), a spot looks along to_world's +z with `cutoff_angle` (20
+// degrees) and `beam_width` (3/4 of the cutoff) in degrees, its radiant
+// `intensity` in W/sr; a directional light travels along to_world's +z (or
+// `direction`), its `irradiance` in W/m^2.
+void Importer::delta_emitter(xml_node n, const std::string& type) {
+    Props p = props(n);
+    ignore(p, {"sampling_weight"});  // how often it is sampled, not the image
+    const Mat4 xf = get_transform(p, "to_world");
+    DeltaLight l;
+    const auto colour = [&](const char* name) {
+        if (xml_node t = take(p, name); t) {
+            const std::string tag = t.name();
+            if (tag == "texture" || tag == "ref")
+                fail(t, "a texture for the " + type + " emitter's '" + name + "' is not supported (give a colour)");
+            const Color c = colour_of(t);
+            if (!is_finite(c) || c.r < 0.f || c.g < 0.f || c.b < 0.f)
+                fail(t, std::string("'") + name + "' must be finite and non-negative");
+            return c;
+        }
+        return Color(1.f);
+    };
+    if (type == "directional") {
+        l.kind = DeltaLight::Kind::Directional;
+        l.direction = get_point(p, "direction", Vec3(xf * glm::vec4(0.f, 0.f, 1.f, 0.f)));
+        l.intensity = colour("irradiance");
+    } else {
+        l.kind = type == "point" ? DeltaLight::Kind::Point : DeltaLight::Kind::Spot;
+        l.position = get_point(p, "position", Vec3(xf * glm::vec4(0.f, 0.f, 0.f, 1.f)));
+        l.intensity = colour("intensity");
+        if (type == "spot") {
+            if (xml_node t = take(p, "texture"); t)
+                fail(t, "a spot emitter's projected 'texture' is not supported (remove it to light with the spot's intensity)");
+            l.direction = Vec3(xf * glm::vec4(0.f, 0.f, 1.f, 0.f));
+            const float cutoff = get_float(p, "cutoff_angle", 20.f);
+            const float beam = get_float(p, "beam_width", 0.75f * cutoff);
+            if (!(cutoff > 0.f && cutoff <= 180.f)) fail(n, "the spot's 'cutoff_angle' must be in (0, 180] degrees");
+            if (!(beam > 0.f)) fail(n, "the spot's 'beam_width' must be positive");
+            // Mitsuba's falloff is full intensity wherever the beam is at least as wide as the cutoff.
+            l.cutoff = glm::radians(cutoff), l.beam_width = glm::radians(std::min(beam, cutoff));
+        }
+    }
+    finish(p);
+    if (l.kind != DeltaLight::Kind::Point && !(glm::length(l.direction) > 0.f))
+        fail(n, "the " + type + " emitter's direction is zero");
+    delta_lights_.push_back(l);
 }
 
 SceneFile Importer::run() {
@@ -1891,6 +1951,7 @@ SceneFile Importer::run() {
     sf.meshes = std::move(stats_);
     sf.scene = std::make_unique<Scene>(std::move(mesh_), std::move(materials_), camera, path_);
     if (environment_) sf.scene->set_environment(std::move(environment_));
+    if (!delta_lights_.empty()) sf.scene->set_delta_lights(std::move(delta_lights_), path_);
     // A scene whose lights were all dropped renders black: not a result.
     if (emitter_elements_ > 0 && !sf.scene->has_lights())
         throw InputError(fmt::format("{}: every emitter was dropped ({} <emitter> element{}), the image would be "

@@ -429,6 +429,65 @@ std::shared_ptr<Environment> parse_environment(const std::string& file, const js
     }
 }
 
+// The scene file's "lights": delta lights (delta_light.h). A point or spot
+// light gives its radiant intensity in W/sr ("intensity"), a directional
+// light its irradiance on a perpendicular surface in W/m^2 ("irradiance");
+// a spot's angles are in degrees, from its axis.
+std::vector<DeltaLight> parse_lights(const std::string& file, const json& j) {
+    if (!j.is_array()) fail(file, "'lights' must be an array");
+    std::vector<DeltaLight> out;
+    for (size_t i = 0; i < j.size(); ++i) {
+        const json& e = j[i];
+        const std::string where = "lights[" + std::to_string(i) + "]";
+        if (!e.is_object() || !e.contains("type") || !e["type"].is_string())
+            fail(file, "'" + where + ".type' must be \"point\", \"spot\" or \"directional\"");
+        const std::string type = e["type"].get<std::string>();
+        DeltaLight l;
+        const auto colour = [&](const char* key) {
+            if (!e.contains(key)) fail(file, "'" + where + "' (" + type + ") needs '" + key + "'");
+            const Color c = get_vec3(file, e[key], where + "." + key);
+            if (!is_finite(c) || c.r < 0.f || c.g < 0.f || c.b < 0.f)
+                fail(file, "'" + where + "." + key + "' must be finite and non-negative");
+            return c;
+        };
+        if (type == "point") {
+            check_keys(file, where + " (point)", e, {"type", "position", "intensity"});
+            l.kind = DeltaLight::Kind::Point;
+            if (!e.contains("position")) fail(file, "'" + where + "' (point) needs 'position'");
+            l.position = get_vec3(file, e["position"], where + ".position");
+            l.intensity = colour("intensity");
+        } else if (type == "spot") {
+            check_keys(file, where + " (spot)", e,
+                       {"type", "position", "target", "direction", "intensity", "cutoff_angle", "beam_width"});
+            l.kind = DeltaLight::Kind::Spot;
+            if (!e.contains("position")) fail(file, "'" + where + "' (spot) needs 'position'");
+            l.position = get_vec3(file, e["position"], where + ".position");
+            if (e.contains("target") == e.contains("direction"))
+                fail(file, "'" + where + "' (spot) needs exactly one of 'target' and 'direction'");
+            l.direction = e.contains("target") ? get_vec3(file, e["target"], where + ".target") - l.position
+                                               : get_vec3(file, e["direction"], where + ".direction");
+            l.intensity = colour("intensity");
+            const float cutoff = e.contains("cutoff_angle") ? get_number(file, e["cutoff_angle"], where + ".cutoff_angle") : 20.f;
+            const float beam = e.contains("beam_width") ? get_number(file, e["beam_width"], where + ".beam_width") : 0.75f * cutoff;
+            if (!(cutoff > 0.f && cutoff <= 180.f)) fail(file, "'" + where + ".cutoff_angle' must be in (0, 180] degrees");
+            if (!(beam > 0.f && beam <= cutoff)) fail(file, "'" + where + ".beam_width' must be in (0, cutoff_angle] degrees");
+            l.cutoff = glm::radians(cutoff), l.beam_width = glm::radians(beam);
+        } else if (type == "directional") {
+            check_keys(file, where + " (directional)", e, {"type", "direction", "irradiance"});
+            l.kind = DeltaLight::Kind::Directional;
+            if (!e.contains("direction")) fail(file, "'" + where + "' (directional) needs 'direction' (where light travels)");
+            l.direction = get_vec3(file, e["direction"], where + ".direction");
+            l.intensity = colour("irradiance");
+        } else {
+            fail(file, "'" + where + ".type' must be \"point\", \"spot\" or \"directional\", got '" + type + "'");
+        }
+        if (l.kind != DeltaLight::Kind::Point && !(glm::length(l.direction) > 0.f))
+            fail(file, "'" + where + "': the direction must not be zero");
+        out.push_back(l);
+    }
+    return out;
+}
+
 // Overrides of a material from the scene file, applied to the MTL description.
 struct Override {
     std::string type = "auto";
@@ -717,7 +776,7 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     }
     json j = parse_json_file(path);
     check_keys(path, "the scene", j,
-               {"camera", "meshes", "materials", "render", "description", "environment", "animation"});
+               {"camera", "meshes", "materials", "render", "description", "environment", "lights", "animation"});
     if (!j.contains("camera")) fail(path, "missing 'camera'");
     if (!j.contains("meshes") || !j["meshes"].is_array() || j["meshes"].empty())
         fail(path, "'meshes' must be a non-empty array");
@@ -823,6 +882,8 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     }
     std::shared_ptr<Environment> env;
     if (j.contains("environment")) env = parse_environment(path, j["environment"], inputs);
+    std::vector<DeltaLight> lights;
+    if (j.contains("lights")) lights = parse_lights(path, j["lights"]);
     if (any_keys && !range)
         fail(path, "the scene has keys but no 'animation' block giving its frames ({\"first\": 0, \"last\": 47, "
                    "\"fps\": 24})");
@@ -844,11 +905,13 @@ static SceneFile load_scene_file_impl(const std::string& path) {
         }
         sf.animation = std::make_shared<AnimatedScene>(std::move(objects), std::move(materials), cd,
                                                        std::move(camera_track), env, *range, path);
+        if (!lights.empty()) sf.animation->set_delta_lights(std::move(lights));
         sf.scene = sf.animation->scene_at(range->first);
         sf.frame = range->first;
     } else {
         sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
         if (env) sf.scene->set_environment(std::move(env));
+        if (!lights.empty()) sf.scene->set_delta_lights(std::move(lights), path);
     }
     // A file used twice (one OBJ under two transforms, a shared texture) is hashed once.
     std::set<std::string> seen;

@@ -40,6 +40,7 @@ void connection_densities(const Scene& scene, const Subpath& light, const Subpat
         const int i = n - 1 - j;
         d.fwd[i] = v.pdf_rev, d.rev[i] = v.pdf_fwd, d.delta[i] = v.delta;
     }
+    if (s > 0) d.delta_light = (s == 1 ? *q : light.v[0]).delta_light != nullptr;
     // The connecting vertices scatter towards each other, not by a delta lobe.
     d.delta[t - 1] = 0;
     if (s > 0) d.delta[t] = 0;
@@ -60,6 +61,7 @@ void connection_densities(const Scene& scene, const Subpath& light, const Subpat
 bool strategy_possible(const PathDensities& d, int t, int max_s) {
     const int n = d.size();
     if (t < 1 || t > n || (max_s >= 0 && n - t > max_s)) return false;
+    if (t == n && d.delta_light) return false;  // no walk hits a delta light
     if (n == 2) return t == 2;
     if (t == n) return true;
     return !d.delta[t - 1] && !d.delta[t];
@@ -131,6 +133,56 @@ ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath
         // The camera walk hit an emitter.
         if (pt.type != VertexType::Surface || !pt.si.is_emitter()) return r;
         r.value = pt.beta * pt.si.emitted(pt.wo);
+    } else if (s == 1 && scene.picks_delta(pt.u_light)) {
+        // Next-event estimation towards a delta light: no other strategy of a
+        // path tracer reaches it, and bidirectional ones only through its
+        // light subpaths (the light end's density is a selection probability).
+        if (!pt.connectible() || pt.type != VertexType::Surface) return r;
+        const LightSample ls =
+            scene.sample_light(pt.si.p, pt.u_light, camera_sampler.at2(dims::vertex(t - 1) + dims::kLightPoint));
+        if (!ls.delta || is_black(ls.radiance)) return r;
+        const SurfaceInteraction& si = pt.si;
+        Vec3 w;
+        float scale;  // 1 / (r^2 p_select) for a point (I in W/sr), 1 / p_select for a direction (E in W/m^2)
+        if (ls.infinite) {
+            w = -ls.n;
+            scale = 1.f / ls.pdf_w;
+        } else {
+            const Vec3 d = ls.p - si.p;
+            const float dist2 = glm::dot(d, d);
+            if (!(dist2 > 0.f)) return r;
+            w = d / std::sqrt(dist2);
+            scale = 1.f / (dist2 * ls.pdf_a);
+        }
+        const Color f = si.material->bsdf->eval(si.frame.to_local(pt.wo), si.frame.to_local(w), si.uv);
+        r.value = pt.beta * f * ls.radiance * (abs_cos_shading(pt, w) * scale);
+        if (is_black(r.value)) {
+            r = {};  // every exit returns r, so it is built in the caller's slot
+            return r;
+        }
+        ++rays;
+        const bool lit = ls.infinite ? !scene.occluded(spawn_ray(si, w)) : scene.visible(si.p, si.ng, ls.p, Vec3(0.f));
+        if (!lit) {
+            r = {};
+            r.occluded = true;
+            return r;
+        }
+        if (!want_weight) return r;
+        if (set.max_s == 0 || set.max_s == 1) {  // a path tracer's set (-1 is any strategy)
+            r.weight = 1.0;
+            return r;
+        }
+        sampled.emplace();
+        Vertex& lv = *sampled;
+        lv.type = VertexType::Light;
+        lv.delta_light = ls.delta_light;
+        lv.infinite = ls.infinite;
+        lv.si.p = ls.p;
+        lv.si.ng = ls.infinite ? ls.n : -w;
+        lv.si.frame = Frame(lv.si.ng);
+        lv.le = ls.radiance;
+        lv.pdf_fwd = ls.infinite ? ls.pdf_w : ls.pdf_a;
+        q = &*sampled;
     } else if (s == 1 && scene.picks_environment(pt.u_light)) {
         // Next-event estimation towards the environment (path/environment.h).
         if (!pt.connectible()) return r;

@@ -55,6 +55,45 @@ void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sam
                  RecordVertices{}, true, first_hit);
 }
 
+namespace {
+
+// trace_light_subpath() from delta-light sample `ls` (Scene::sample_emitter_point).
+void start_delta_subpath(const Scene& scene, const LightSample& ls, const Sampler& sampler, const WalkOptions& opt,
+                         Subpath& path) {
+    const uint32_t b = dims::light_origin();
+    const DeltaLight& dl = *ls.delta_light;
+    if (ls.infinite) {
+        // A delta direction: the environment's disk, with the selection
+        // probability as the direction's density and E in place of L.
+        Ray ray;
+        Color beta;
+        double pdf_disk = 0.0;
+        if (start_environment_subpath(scene, ls, sampler.at2(b + dims::kEmitDir), path, ray, beta, pdf_disk)) {
+            path.v.back().delta_light = &dl;
+            walk_subpath(scene, ray, beta, Color(1.f), pdf_disk, sampler, opt, path, RecordVertices{});
+        }
+        return;
+    }
+    if (!(ls.pdf_a > 0.f)) return;
+    const Vec3 w = dl.sample_emission(sampler.at2(b + dims::kEmitDir));
+    const float pdf_dir = dl.emission_pdf_w(w);
+    Vertex& l = path.v.emplace_back();
+    l.type = VertexType::Light;
+    l.delta_light = &dl;
+    l.si.p = ls.p;
+    l.si.ng = w;  // the emitted direction: cosines at a point light are 1
+    l.si.frame = Frame(w);
+    l.le = dl.intensity_towards(w);
+    l.pdf_fwd = ls.pdf_a;
+    // I(w) / (p_select pdf_dir): W/sr over (unitless times 1/sr), no cosine at a point.
+    l.beta = dl.intensity / ls.pdf_a;
+    if (!(pdf_dir > 0.f) || is_black(l.le)) return;
+    const Ray ray{ls.p, w, 0.f, kInf};
+    walk_subpath(scene, ray, l.le / (ls.pdf_a * pdf_dir), Color(1.f), pdf_dir, sampler, opt, path, RecordVertices{});
+}
+
+}  // namespace
+
 void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkOptions& opt, Subpath& path) {
     path.mode = TransportMode::Importance;
     path.v.clear();
@@ -62,6 +101,10 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
     if (!scene.has_lights()) return;
     const uint32_t b = dims::light_origin();
     const LightSample ls = scene.sample_emitter_point(sampler.at(b + dims::kEmitSelect), sampler.at2(b + dims::kEmitPoint));
+    if (ls.delta) {
+        start_delta_subpath(scene, ls, sampler, opt, path);
+        return;
+    }
     if (ls.infinite) {
         Ray ray;
         Color beta;
@@ -108,7 +151,9 @@ double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const
     double pdf_w = 0.0;
     switch (cur.type) {
         case VertexType::Camera: pdf_w = scene.camera().direction_pdf(w); break;
-        case VertexType::Light: pdf_w = std::max(0.f, glm::dot(cur.si.ng, w)) * kInvPi; break;
+        case VertexType::Light:
+            pdf_w = cur.delta_light ? cur.delta_light->emission_pdf_w(w) : std::max(0.f, glm::dot(cur.si.ng, w)) * kInvPi;
+            break;
         case VertexType::Surface: {
             if (!prev) return 0.0;
             const Vec3 to_prev = glm::normalize(prev->si.p - cur.si.p);
@@ -121,6 +166,7 @@ double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const
 }
 
 double pdf_light_origin(const Scene& scene, const Vertex& v) {
+    if (v.delta_light) return scene.delta_light_pdf(*v.delta_light);
     if (v.infinite) return scene.environment_pdf(-v.si.ng);
     if (v.type == VertexType::Light) return v.pdf_fwd;
     if (v.type != VertexType::Surface || !v.si.is_emitter()) return 0.0;
@@ -136,6 +182,7 @@ double pdf_light_direction(const Vertex& v, const Vertex& next) {
     const Vec3 d = next.si.p - v.si.p;
     const float len = glm::length(d);
     if (!(len > 0.f)) return 0.0;
+    if (v.delta_light) return area_density(v.delta_light->emission_pdf_w(d / len), v, next);
     return area_density(std::max(0.f, glm::dot(v.si.ng, d / len)) * kInvPi, v, next);
 }
 

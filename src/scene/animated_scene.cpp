@@ -129,7 +129,13 @@ std::unique_ptr<Scene> AnimatedScene::scene_at(double t) const {
     auto scene = std::make_unique<Scene>(std::move(all), materials_, camera_at(t), origin_,
                                          share_static_ ? shared_ : nullptr);
     if (environment_) scene->set_environment(environment_);
+    if (!delta_lights_.empty()) scene->set_delta_lights(delta_lights_, origin_);
     return scene;
+}
+
+void AnimatedScene::set_delta_lights(std::vector<DeltaLight> lights) {
+    check_delta_lights(lights, origin_);
+    delta_lights_ = std::move(lights);
 }
 
 bool track_point(const AnimatedScene& anim, int32_t object, const Vec3& p, double t_from, double t_to, Vec2& film) {

@@ -297,13 +297,38 @@ void Scene::build_lights() {
     stats_.emitters = emitters.size();
     // The environment's share of the power (environment_selection()); the
     // triangles share the rest, so their densities are scaled by it.
+    // And the delta lights' share, each by its own power.
     env_select_ = 0.f;
-    if (env_) {
-        const double env_power = double(radius_) * double(radius_) * env_->luminance_integral();
-        env_select_ = total > 0.0 ? float(env_power / (env_power + total)) : 1.f;
+    delta_select_ = 0.f;
+    const double env_power = env_ ? double(radius_) * double(radius_) * env_->luminance_integral() : 0.0;
+    double delta_power = 0.0;
+    std::vector<double> delta_powers;
+    for (const DeltaLight& l : delta_lights_) {
+        delta_powers.push_back(std::max(0.0, l.power(radius_)));
+        delta_power += delta_powers.back();
+    }
+    const double all = total + std::max(0.0, env_power) + delta_power;
+    if (all > 0.0) {
+        if (env_power > 0.0) env_select_ = float(env_power / all);
+        if (delta_power > 0.0) delta_select_ = float(delta_power / all);
+        if (total == 0.0) {
+            // No triangle takes the rest: rounding must not leave a gap.
+            if (delta_power > 0.0) delta_select_ = 1.f - env_select_;
+            else env_select_ = 1.f;
+        }
+    } else if (env_) {
+        env_select_ = 1.f;  // as before: an environment of no power still is the only light
         if (!(env_power > 0.0)) env_select_ = 0.f;
     }
-    const double tri_share = 1.0 - double(env_select_);
+    delta_pick_.assign(delta_lights_.size(), 0.f);
+    delta_cdf_.assign(delta_lights_.size() + 1, 0.f);
+    for (size_t i = 0; i < delta_lights_.size(); ++i) {
+        const double share = delta_power > 0.0 ? delta_powers[i] / delta_power : 0.0;
+        delta_pick_[i] = float(double(delta_select_) * share);
+        delta_cdf_[i + 1] = delta_cdf_[i] + float(share);
+    }
+    if (!delta_lights_.empty()) delta_cdf_.back() = 1.f;
+    const double tri_share = 1.0 - double(env_select_) - double(delta_select_);
     // Half of a typical 32 KiB first-level data cache: beyond it, a bucket
     // picked at random is often not cached when its light sample is drawn.
     constexpr size_t kCachedLightBytes = size_t(16) << 10;
@@ -646,6 +671,33 @@ void Scene::set_environment(std::shared_ptr<const Environment> env) {
     build_lights();
 }
 
+void check_delta_lights(std::vector<DeltaLight>& lights, const std::string& origin) {
+    for (size_t i = 0; i < lights.size(); ++i) {
+        DeltaLight& l = lights[i];
+        const std::string what = origin + ": light " + std::to_string(i) + ": ";
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(l.intensity[c]) || l.intensity[c] < 0.f)
+                throw InputError(what + "intensity must be finite and not negative");
+        for (int c = 0; c < 3; ++c)
+            if (!std::isfinite(l.position[c]) || !std::isfinite(l.direction[c]))
+                throw InputError(what + "position and direction must be finite");
+        if (l.kind != DeltaLight::Kind::Point) {
+            const float len = glm::length(l.direction);
+            if (!(len > 0.f) || !std::isfinite(len)) throw InputError(what + "direction must not be zero");
+            l.direction /= len;
+        }
+        if (l.kind == DeltaLight::Kind::Spot &&
+            !(l.beam_width > 0.f && l.beam_width <= l.cutoff && l.cutoff <= kPi))
+            throw InputError(what + "a spot needs 0 < beam width <= cutoff angle <= 180 degrees");
+    }
+}
+
+void Scene::set_delta_lights(std::vector<DeltaLight> lights, const std::string& origin) {
+    check_delta_lights(lights, origin);
+    delta_lights_ = std::move(lights);
+    build_lights();
+}
+
 LightSample Scene::sample_environment(const Vec3& ref, const Vec2& u) const {
     LightSample ls;
     const EnvironmentSample es = env_->sample(u);
@@ -677,9 +729,45 @@ inline LightSample Scene::sample_triangle(float u_sel, const Vec2& u) const {
     return ls;
 }
 
+LightSample Scene::sample_delta(const Vec3* ref, float u_sel) const {
+    LightSample ls;
+    const size_t n = delta_lights_.size();
+    size_t i = size_t(std::upper_bound(delta_cdf_.begin() + 1, delta_cdf_.end(), u_sel) - (delta_cdf_.begin() + 1));
+    i = std::min(i, n - 1);
+    while (i > 0 && !(delta_pick_[i] > 0.f)) --i;  // a light of no power is never picked
+    const DeltaLight& l = delta_lights_[i];
+    if (!(delta_pick_[i] > 0.f)) return ls;
+    ls.delta = true;
+    ls.delta_light = &l;
+    if (l.kind == DeltaLight::Kind::Directional) {
+        ls.infinite = true;
+        ls.n = l.direction;
+        ls.radiance = l.intensity;
+        ls.pdf_w = delta_pick_[i];
+        ls.p = beyond_scene(ref ? *ref : center_, -l.direction);
+        return ls;
+    }
+    ls.p = l.position;
+    ls.pdf_a = delta_pick_[i];
+    if (!ref) {
+        ls.n = l.direction;
+        ls.radiance = l.intensity;
+        return ls;
+    }
+    const Vec3 d = *ref - l.position;
+    const float dist = glm::length(d);
+    if (!(dist > 0.f)) return LightSample{};
+    ls.n = d / dist;
+    ls.radiance = l.intensity_towards(ls.n);
+    return ls;
+}
+
 LightSample Scene::sample_with_environment(const Vec3* ref, float u_sel, const Vec2& u) const {
     if (u_sel < env_select_) return sample_environment(ref ? *ref : center_, u);
-    LightSample ls = sample_triangle((u_sel - env_select_) / (1.f - env_select_), u);
+    if (u_sel < env_select_ + delta_select_) return sample_delta(ref, (u_sel - env_select_) / delta_select_);
+    const float rest = 1.f - env_select_ - delta_select_;
+    if (!(rest > 0.f)) return LightSample{};
+    LightSample ls = sample_triangle((u_sel - env_select_ - delta_select_) / rest, u);
     if (ref && !(glm::dot(ls.n, *ref - ls.p) > 0.f)) ls.radiance = Color(0.f);
     return ls;
 }
@@ -688,13 +776,13 @@ LightSample Scene::sample_with_environment(const Vec3* ref, float u_sel, const V
 // triangle sampler stays inlined: out of line (a call and its result
 // through memory) it cost the path tracer 8% on the Cornell box.
 LightSample Scene::sample_emitter_point(float u_sel, const Vec2& u) const {
-    if (env_) [[unlikely]]
+    if (env_ || !delta_lights_.empty()) [[unlikely]]
         return sample_with_environment(nullptr, u_sel, u);
     return sample_triangle(u_sel, u);
 }
 
 LightSample Scene::sample_light(const Vec3& ref, float u_sel, const Vec2& u) const {
-    if (env_) [[unlikely]]
+    if (env_ || !delta_lights_.empty()) [[unlikely]]
         return sample_with_environment(&ref, u_sel, u);
     LightSample ls = sample_triangle(u_sel, u);
     if (!(glm::dot(ls.n, ref - ls.p) > 0.f)) ls.radiance = Color(0.f);

@@ -66,6 +66,39 @@ inline bool same_side_values(const OffsetVertex& y, const Vertex& x) {
     return y.si.material->wo_side_only && y.wo.z * glm::dot(x.wo, x.si.frame.n) > 0.f;
 }
 
+// The base's sample of a point or spot light, seen from offset vertex y_k:
+// the same light position (a delta in position, so shared exactly), its
+// intensity towards y_k. Light sampling's density there is p_select ly^2 per
+// steradian (the cosine at a point light is 1 by convention, LightSample),
+// so the Jacobian of the shared direction is (p_select lx^2) / (p_select
+// ly^2), and no BSDF sample reaches the light (BSDF density 0).
+void shift_delta_light_connection(const Scene& scene, const LightConnection& nee, OffsetPath& path, size_t k,
+                                  DeferredVisibility* defer) {
+    OffsetRecord& rec = path.v[k];
+    const LightSample& ls = nee.light;
+    const OffsetVertex& y = rec.y;
+    const Vec3d dy = Vec3d(ls.p) - Vec3d(y.si.p);
+    const double ly2 = glm::dot(dy, dy);
+    if (!(ly2 > 0.0) || !(ls.pdf_a > 0.f)) return;
+    const Vec3 wi_world = Vec3(dy / std::sqrt(ly2));
+    const Vec3 wi = y.si.frame.to_local(wi_world);
+    const double pdf_y = double(ls.pdf_a) * ly2;
+    rec.nee = true;
+    rec.nee_cos = abs_cos_theta(wi);
+    const BsdfEval fe = y.si.material->bsdf->eval_pdf(y.wo, wi, y.si.uv);
+    rec.nee_f = fe.f;
+    rec.nee_pdf_bsdf = 0.f;
+    rec.nee_pdf_light_w = pdf_y;
+    rec.nee_jacobian = nee.pdf_w / pdf_y;
+    const Color le = ls.delta_light->intensity_towards(-wi_world);
+    if (!is_black(le) && !is_black(rec.nee_f)) {
+        ++path.rays;
+        const bool lit =
+            DeferredVisibility::queued_or_visible(scene, defer, y.si.p, y.si.ng, ls.p, Vec3(0.f), {&path, k, false});
+        rec.nee_radiance = lit ? le : Color(0.f);
+    }
+}
+
 // The base's light sample at x_k, seen from the offset vertex y_k (of
 // `path`); its shadow segment is queued in `defer` if given and not full.
 void shift_light_connection(const Scene& scene, const ShiftConfig& config, const CameraPath& base, size_t k,
@@ -91,7 +124,7 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         rec.nee_cos = abs_cos_theta(wi);
         rec.nee_jacobian = 1.0;
         rec.nee_pdf_light_w = nee.pdf_w;
-        rec.nee_pdf_bsdf = fe.pdf;
+        rec.nee_pdf_bsdf = ls.delta ? 0.f : fe.pdf;  // no BSDF sample reaches a delta light
         if (nee.tested) {
             rec.nee_radiance = nee.visible ? ls.radiance : Color(0.f);
         } else if (!is_black(ls.radiance) && !is_black(fe.f)) {
@@ -117,7 +150,7 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
         rec.nee = true;
         rec.nee_cos = abs_cos_theta(wi);
         rec.nee_f = fe.f;
-        rec.nee_pdf_bsdf = fe.pdf;
+        rec.nee_pdf_bsdf = ls.delta ? 0.f : fe.pdf;  // a directional light: as the environment's, a delta
         rec.nee_pdf_light_w = nee.pdf_w;
         rec.nee_jacobian = 1.0;
         if (!is_black(ls.radiance) && !is_black(fe.f)) {
@@ -127,6 +160,10 @@ void shift_light_connection(const Scene& scene, const ShiftConfig& config, const
                                                                    {&path, k, false});
             rec.nee_radiance = lit ? ls.radiance : Color(0.f);
         }
+        return;
+    }
+    if (ls.delta) {
+        shift_delta_light_connection(scene, nee, path, k, defer);
         return;
     }
     const Vec3d pz(ls.p), nz(ls.n);

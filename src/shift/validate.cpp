@@ -73,14 +73,22 @@ std::optional<double> fd_light_jacobian(const Vertex& X, const LightConnection& 
     // Seen edge-on (a vertex in the emitter's own plane), both the density
     // and its differences are float rounding.
     for (const Vec3d& q : {px, py})
-        if (!(std::abs(glm::dot(n, glm::normalize(q - p))) > 1e-4)) return std::nullopt;
-    const Frame f(nee.light.n);
+        if (!nee.light.delta && !(std::abs(glm::dot(n, glm::normalize(q - p))) > 1e-4)) return std::nullopt;
     const double h = double(eps) * glm::length(p - px);
-    const Vec3d d[4] = {h * Vec3d(f.s), -h * Vec3d(f.s), h * Vec3d(f.t), -h * Vec3d(f.t)};
+    // A point or spot light is the limit of a small sphere: each vertex sees
+    // a disk of it facing that vertex (so the cosine at the light is 1 from
+    // everywhere, LightSample's convention), moved in its own plane.
+    const Frame f(nee.light.n), fx(Vec3(glm::normalize(px - p))), fy(Vec3(glm::normalize(py - p)));
+    const Frame& gx = nee.light.delta ? fx : f;
+    const Frame& gy = nee.light.delta ? fy : f;
+    const auto step = [h](const Frame& g, int i) {
+        const Vec3d s(g.s), t(g.t);
+        return i == 0 ? h * s : i == 1 ? -h * s : i == 2 ? h * t : -h * t;
+    };
     Vec3d wx[4], wy[4];
     for (int i = 0; i < 4; ++i) {
-        wx[i] = glm::normalize(p + d[i] - px);
-        wy[i] = glm::normalize(p + d[i] - py);
+        wx[i] = glm::normalize(p + step(gx, i) - px);
+        wy[i] = glm::normalize(p + step(gy, i) - py);
     }
     const double ax = spanned_area(wx);
     if (!(ax > 0.0)) return std::nullopt;
@@ -156,7 +164,8 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
 
         for (size_t k = 1; k + 1 < y.size() && k < y.v.size(); ++k) {
             const OffsetRecord& r = y.v[k];
-            if (r.nee && !r.y.on_base && x.nee[k].valid && r.nee_jacobian > 0.0) {
+            // A directional light's direction is shared as such: |J| = 1 by construction.
+            if (r.nee && !r.y.on_base && x.nee[k].valid && r.nee_jacobian > 0.0 && !x.nee[k].light.infinite) {
                 if (auto j = richardson(o.fd_step, [&](float e) { return fd_light_jacobian(x.v[k], x.nee[k], r.y, e); })) {
                     const double e = std::abs(r.nee_jacobian / *j - 1.0);
                     errors.push_back(e);

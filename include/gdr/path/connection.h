@@ -32,10 +32,13 @@ struct PathDensities {
     std::vector<double> fwd;  ///< fwd[i]: density of a camera-direction walk producing z_i from z_{i-1} (i >= 1).
     std::vector<double> rev;  ///< rev[i]: density of a light-direction walk producing z_i from z_{i+1}; rev[n-1] the light's origin density.
     std::vector<uint8_t> delta;  ///< delta[i]: z_i scattered through a Dirac lobe (no strategy connects at it).
+    /// The light end z_{n-1} is on a delta light (a point, spot or
+    /// directional light): no camera walk reaches it, so s = 0 is impossible.
+    bool delta_light = false;
     /// Number of vertices n.
     int size() const { return int(fwd.size()); }
-    /// Resizes to n vertices, all densities 0 and no delta.
-    void resize(int n) { fwd.assign(n, 0.0), rev.assign(n, 0.0), delta.assign(n, 0); }
+    /// Resizes to n vertices, all densities 0, no delta and no delta light.
+    void resize(int n) { fwd.assign(n, 0.0), rev.assign(n, 0.0), delta.assign(n, 0), delta_light = false; }
 };
 
 /// The strategies an estimator combines, and how.
@@ -50,8 +53,8 @@ struct StrategySet {
 /// True if strategy t (camera vertices z_0 .. z_{t-1}) can sample a path of
 /// `d` and is in a set with at most `max_s` light vertices (-1: any): its
 /// connecting vertices are not delta (for s = 0, the light is not a delta
-/// light, which gdr does not have), and a two-vertex path (the camera sees
-/// the light) has only s = 0, since a pinhole cannot be hit.
+/// light: PathDensities::delta_light), and a two-vertex path (the camera
+/// sees the light) has only s = 0, since a pinhole cannot be hit.
 bool strategy_possible(const PathDensities& d, int t, int max_s = -1);
 /// MIS weight of strategy t for the path of `d` among the possible
 /// strategies of `set`, by its heuristic over their full-path densities

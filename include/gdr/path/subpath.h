@@ -55,6 +55,14 @@ struct Vertex {
     /// subpath has the density of the emission disk, per m^2 (pbrt-v4's
     /// convention for infinite lights).
     bool infinite = false;
+    /// A light vertex on a delta light (delta_light.h; owned by the Scene),
+    /// or null. A point or spot light's vertex is its position, its "area"
+    /// densities are discrete probabilities (its selection's), and le its
+    /// intensity (W/sr) along si.ng; a directional light's is a vertex at
+    /// infinity (`infinite`, si.ng the direction light travels) with le its
+    /// irradiance (W/m^2) and a discrete selection probability as density.
+    /// No walk can hit one: a strategy that would need to is impossible.
+    const DeltaLight* delta_light = nullptr;
 
     /// True if the walk sampled a direction here (bs is valid).
     bool scattered() const { return bs.pdf > 0.f; }
@@ -112,8 +120,10 @@ void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sam
                           Subpath& path, const SurfaceInteraction* first = nullptr, bool first_hit = false);
 /// Traces a light subpath: v[0] is a point on an emitter chosen by power and
 /// area with a cosine-distributed direction (numbers from
-/// dims::light_origin()), v[k] its k-th hit (dims::light_vertex(k)). Empty
-/// when the scene has no emitter.
+/// dims::light_origin()), or a delta light with its own emission direction
+/// (DeltaLight::sample_emission; a directional light's ray enters through
+/// the bounding disk, as an environment's), v[k] its k-th hit
+/// (dims::light_vertex(k)). Empty when the scene has no emitter.
 void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkOptions& opt, Subpath& path);
 
 /// Area density (1/m^2) at `next` with which vertex `cur`, reached from

@@ -56,7 +56,7 @@ struct LightConnection {
     Vec3 wi{0.f};             ///< Unit direction to the light point in the vertex's shading frame (if dist > 0).
     double pdf_w = 0.0;       ///< Light-sampling density of that direction (1/sr); 0 if dist is 0.
     Color f{0.f};             ///< BSDF value at the vertex for (wo, wi) (1/sr; 0 if dist is 0).
-    float pdf_bsdf = 0.f;     ///< BSDF sampling density of wi at the vertex given wo (1/sr; 0 if dist is 0).
+    float pdf_bsdf = 0.f;     ///< BSDF sampling density of wi at the vertex given wo (1/sr; 0 if dist is 0 or the light is a delta light).
 
     /// Fills dist, wi, pdf_w, f and pdf_bsdf for this sample taken at surface
     /// point `at` entered from local direction `wo`; call again whenever
@@ -75,7 +75,8 @@ struct LightConnection {
         pdf_w = light.infinite ? double(light.pdf_w)
                                : pdf_a_to_w(double(light.pdf_a), double(dist), double(glm::dot(light.n, w)));
         const BsdfEval fe = at.material->bsdf->eval_pdf(wo, wi, at.uv);
-        f = fe.f, pdf_bsdf = fe.pdf;
+        // No BSDF sample reaches a delta light: light sampling is its only strategy.
+        f = fe.f, pdf_bsdf = light.delta ? 0.f : fe.pdf;
     }
 };
 

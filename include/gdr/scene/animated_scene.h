@@ -57,6 +57,10 @@ public:
     const CameraDesc& camera_optics() const { return camera_; }
     /// Replaces the resolution and field of view (not the pose) of every frame's camera with `d`'s.
     void set_camera_optics(const CameraDesc& d);
+    /// Lights every frame with these delta lights (point, spot, directional;
+    /// they do not move). Validated as Scene::set_delta_lights() does, naming
+    /// the scene. Not synchronised with scene_at().
+    void set_delta_lights(std::vector<DeltaLight> lights);
     /// The camera's keys (empty: a fixed camera).
     const CameraTrack& camera_track() const { return camera_track_; }
     /// True if frames share the static objects' BVH (some object moves, no
@@ -73,6 +77,7 @@ private:
     CameraDesc camera_;
     CameraTrack camera_track_;
     std::shared_ptr<const Environment> environment_;
+    std::vector<DeltaLight> delta_lights_;  // see set_delta_lights()
     AnimationRange range_;
     std::string origin_;
     bool any_moves_ = false;                  // some object has keys

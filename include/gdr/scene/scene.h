@@ -11,6 +11,7 @@
 #include "gdr/core/math.h"
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/camera.h"
+#include "gdr/scene/delta_light.h"
 #include "gdr/scene/environment.h"
 
 namespace gdr {
@@ -83,6 +84,20 @@ struct LightSample {
     /// shadow ray towards the environment.
     bool infinite = false;
     float pdf_w = 0.f;   ///< Infinite samples: solid-angle density of -n including light selection (1/sr).
+    /// The sample is on a delta light (delta_light.h), which no other
+    /// strategy can reach: its MIS weight against BSDF sampling is 1.
+    /// - Point or spot (`infinite` false): p is the light's position, n the
+    ///   unit direction from it towards the reference point (so that the
+    ///   cosine at the light is 1; along the spot's axis for
+    ///   sample_emitter_point()), radiance its intensity towards the
+    ///   reference point (W/sr) and pdf_a the discrete probability of
+    ///   selecting it (unitless): the area-light estimate L f cos cos_l /
+    ///   (r^2 pdf_a) is then I f cos / (r^2 p_select), the point light's.
+    /// - Directional (`infinite` true): n is the direction light travels,
+    ///   radiance the irradiance E (W/m^2 perpendicular to n) and pdf_w the
+    ///   discrete selection probability: L f cos / pdf_w is E f cos / p_select.
+    bool delta = false;
+    const DeltaLight* delta_light = nullptr;  ///< The delta light sampled (if `delta`); owned by the Scene.
 };
 
 /// True if a triangle has no area a ray can hit (zero, or overflowing float):
@@ -91,6 +106,12 @@ inline bool zero_area_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2) {
     const float len = glm::length(glm::cross(p1 - p0, p2 - p0));
     return !(len > 0.f) || !std::isfinite(len);
 }
+
+/// Checks delta lights as Scene::set_delta_lights() takes them and makes
+/// their directions unit vectors: InputError naming `origin` and the light's
+/// index on a non-finite or negative intensity, a non-finite position, a
+/// zero direction or a spot whose angles are not 0 < beam_width <= cutoff <= pi.
+void check_delta_lights(std::vector<DeltaLight>& lights, const std::string& origin);
 
 /// Counters gathered while loading (reported by the CLI).
 struct SceneStats {
@@ -216,8 +237,24 @@ public:
     bool cut_out(uint32_t prim, float b1, float b2) const;
     /// Area density (1/m^2) with which sample_light picks `prim` at any point on it.
     float light_pdf_a(uint32_t prim) const;
-    /// True if the scene has any emitter (an environment counts).
-    bool has_lights() const { return !buckets_.empty() || env_ != nullptr; }
+    /// True if the scene has any emitter (an environment and delta lights count).
+    bool has_lights() const { return !buckets_.empty() || env_ != nullptr || !delta_lights_.empty(); }
+
+    /// Installs the scene's delta lights (point, spot, directional; none
+    /// removes them) and recomputes the light selection: each is one more
+    /// light, picked by its power (DeltaLight::power). InputError naming
+    /// `origin` on a non-finite or negative intensity, a zero direction or a
+    /// spot whose angles are not 0 < beam_width <= cutoff <= pi. Not
+    /// synchronised: set them only while no render runs.
+    void set_delta_lights(std::vector<DeltaLight> lights, const std::string& origin = "scene");
+    /// The delta lights (pointers into this stay valid until set_delta_lights()).
+    const std::vector<DeltaLight>& delta_lights() const { return delta_lights_; }
+    /// Probability (unitless) with which sample_light() picks one of the delta lights.
+    float delta_selection() const { return delta_select_; }
+    /// True if u_sel, a light-selection number of sample_light(), picks a delta light.
+    bool picks_delta(float u_sel) const { return delta_select_ > 0.f && u_sel >= env_select_ && u_sel < env_select_ + delta_select_; }
+    /// Discrete probability (unitless) with which sample_light() picks delta light `l` (one of delta_lights()).
+    float delta_light_pdf(const DeltaLight& l) const { return delta_pick_[size_t(&l - delta_lights_.data())]; }
 
     /// Installs an environment emitter (nullptr removes it) and recomputes
     /// the light selection: the environment is one more light, picked with
@@ -361,9 +398,17 @@ private:
     std::shared_ptr<SharedGeometry> shared_;  // kept alive while its instance is in use
     void build_on_shared(std::shared_ptr<SharedGeometry> shared, const std::string& origin);
     float env_select_ = 0.f;                  // environment_selection()
+    std::vector<DeltaLight> delta_lights_;    // see set_delta_lights()
+    std::vector<float> delta_pick_;           // per delta light: its selection probability (delta share included)
+    std::vector<float> delta_cdf_;            // cdf over the delta lights, within their share (n + 1 entries)
+    float delta_select_ = 0.f;                // delta_selection()
+    // sample_light() (ref given) and sample_emitter_point() (ref null) on a
+    // delta light, u_sel rescaled to [0, 1) within the delta lights' share.
+    LightSample sample_delta(const Vec3* ref, float u_sel) const;
     // sample_light()'s environment branch, u_sel already tested.
     LightSample sample_environment(const Vec3& ref, const Vec2& u) const;
-    // sample_light() (ref given) and sample_emitter_point() (ref null) in a scene with an environment.
+    // sample_light() (ref given) and sample_emitter_point() (ref null) in a
+    // scene with an environment or delta lights.
     [[gnu::noinline]] LightSample sample_with_environment(const Vec3* ref, float u_sel, const Vec2& u) const;
     // The triangle both pick with u_sel once past the environment's share.
     LightSample sample_triangle(float u_sel, const Vec2& u) const;
