@@ -104,6 +104,26 @@ class Reconstructions(unittest.TestCase):
         with self.assertRaisesRegex(TypeError, "dx and dy"):
             gdr.reconstruct(self.r["primal"], method="poisson-l2")
 
+    def test_bad_layer_arrays_raise_exceptions_naming_the_layer(self):
+        def with_primal(a):
+            d = dict(self.r)
+            d["primal"] = a
+            return d
+
+        p = self.r["primal"]
+        with self.assertRaisesRegex(gdr.ParameterError, "layer 'primal': expected an array of numbers"):
+            gdr.reconstruct(with_primal(np.full(p.shape[:2], "a")), method="poisson-l2")
+        with self.assertRaisesRegex(gdr.ParameterError, r"layer 'primal'.*\(1, 24, 24, 3\)"):
+            gdr.reconstruct(with_primal(p[None]), method="poisson-l2")
+        nan = p.copy()
+        nan[0, 1, 2] = np.nan
+        with self.assertRaisesRegex(gdr.InputError, r"primal.*nan.*pixel \(1, 0\)"):
+            gdr.reconstruct(with_primal(nan), method="poisson-l2")
+        # Any memory layout and float dtype is read as the same image.
+        for other in (np.asfortranarray(p), p.astype(np.float64), np.ascontiguousarray(p[:, ::-1])[:, ::-1]):
+            np.testing.assert_array_equal(gdr.reconstruct(with_primal(other), method="poisson-l2"),
+                                          gdr.reconstruct(self.r, method="poisson-l2"))
+
     def test_a_python_reconstructor_is_run_by_render_and_merge(self):
         calls = []
 
