@@ -233,6 +233,18 @@ class Manners(unittest.TestCase):
         with self.assertRaisesRegex(gdr.ParameterError, r"layer 'b' is 4 x 6, the others 4 x 5 \(height x width\)"):
             gdr.reconstruct({"primal": a, "dx": a, "b": b})
 
+    def test_progress_true_uses_tqdm_where_it_is_installed(self):
+        try:
+            import tqdm  # noqa: F401
+        except ImportError:
+            self.skipTest("tqdm is not installed (Debian: python3-tqdm)")
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err):
+            gdr.render(small(), integrator="pt", spp=4, seed=0, progress=True)
+        text = err.getvalue()
+        self.assertIn("gdr.render: 100%|", text)  # tqdm's bar_format, at its end
+        self.assertNotIn("gdr.render [", text)    # not the fallback line
+
     def test_progress_true_draws_a_bar_without_tqdm(self):
         saved = {k: sys.modules.get(k) for k in ("tqdm", "tqdm.auto")}
         sys.modules["tqdm"] = sys.modules["tqdm.auto"] = None  # import tqdm now raises ImportError
