@@ -20,11 +20,14 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <dlfcn.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <chrono>
 #include <condition_variable>
 #include <filesystem>
@@ -43,10 +46,13 @@
 #include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
+#include "gdr/io/png.h"
+#include "gdr/io/render_header.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/metrics.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/shift/shift.h"
+#include "gdr_api_source.h"  // kApiSource: python/gdr_api.py, made by CMake
 
 namespace py = pybind11;
 namespace fs = std::filesystem;
@@ -196,6 +202,23 @@ std::shared_ptr<PyScene> load_scene(const fs::path& path, const py::object& defi
     return scene;
 }
 
+/// Throws ParameterError unless `a` and `b` have one shape, stated in numpy's order
+/// (height x width x channels), which is how Python callers see their arrays.
+void require_same_shape(const gdr::Image& a, const std::string& a_name, const gdr::Image& b, const std::string& b_name,
+                        const std::string& fn) {
+    if (a.width() == b.width() && a.height() == b.height() && a.channels() == b.channels()) return;
+    const auto shape = [](const gdr::Image& i) {
+        return std::to_string(i.height()) + " x " + std::to_string(i.width()) + " x " + std::to_string(i.channels());
+    };
+    throw gdr::ParameterError(fn + ": " + a_name + " is " + shape(a) + " but " + b_name + " is " + shape(b) +
+                              " (height x width x channels)");
+}
+
+// Defined with the render files below.
+void record_render(gdr::FrameBuffer& fb, const PyScene& scene, const std::string& integrator,
+                   const gdr::RenderSettings& st, const gdr::RenderStats& stats);
+void require_extension(const fs::path& path, const std::string& ext, const std::string& fn);
+
 // ------------------------------------------------------------------ rendering
 
 /// What the render thread and the waiting caller share.
@@ -344,6 +367,7 @@ py::object render(const std::shared_ptr<PyScene>& scene, const std::optional<std
     // The caller's exception wins: a render it stopped has nothing to return.
     if (raised) throw std::move(*raised);
     if (job.error) std::rethrow_exception(job.error);
+    record_render(job.fb, *scene, name, st, job.stats);
     return make_layers(job.fb, py::cast(job.stats));
 }
 
@@ -359,6 +383,9 @@ py::array_t<float> reconstruct(const py::object& primal, const py::object& dx, c
     f.dx = to_image(dx, "reconstruct: dx");
     f.dy = to_image(dy, "reconstruct: dy");
     if (!direct.is_none()) f.direct = to_image(direct, "reconstruct: direct");
+    require_same_shape(f.dx, "dx", f.primal, "primal", "reconstruct");
+    require_same_shape(f.dy, "dy", f.primal, "primal", "reconstruct");
+    if (!f.direct.empty()) require_same_shape(f.direct, "direct", f.primal, "primal", "reconstruct");
     auto r = gdr::reconstructor_registry().create(method, p);
     // As render: the solve runs on a thread of its own, and this one checks
     // for signals every kPollSeconds; Ctrl-C stops the solve between two of
@@ -418,6 +445,7 @@ py::object read_exr(const fs::path& path) {
 
 /// gdr.write_exr: writes the layers and metadata as one multi-layer EXR.
 void write_exr(const fs::path& path, const py::object& layers, const py::object& metadata) {
+    require_extension(path, ".exr", "write_exr");
     gdr::FrameBuffer fb;
     const py::dict d = as_dict(layers, "write_exr: layers");
     if (d.size() == 0) throw gdr::ParameterError(path.string() + ": write_exr needs at least one layer");
@@ -427,6 +455,11 @@ void write_exr(const fs::path& path, const py::object& layers, const py::object&
         gdr::Image img = to_image(v, path.string() + ": layer '" + name + "'");
         // No written image holds NaN or Inf.
         gdr::require_finite(img, path.string() + ": layer '" + name + "'");
+        if (!fb.names().empty() && (img.width() != fb.width() || img.height() != fb.height()))
+            throw gdr::ParameterError(path.string() + ": layer '" + name + "' is " + std::to_string(img.height()) +
+                                      " x " + std::to_string(img.width()) + " but the layers before it are " +
+                                      std::to_string(fb.height()) + " x " + std::to_string(fb.width()) +
+                                      " (height x width)");
         fb.set(name, std::move(img));
     }
     py::object meta = metadata;
@@ -452,7 +485,9 @@ py::dict registry_dict(const R& r) {
 
 /// Two images for a metric, converted and named.
 std::pair<gdr::Image, gdr::Image> image_pair(const py::object& img, const py::object& ref, const char* fn) {
-    return {to_image(img, std::string(fn) + ": image"), to_image(ref, std::string(fn) + ": reference")};
+    std::pair<gdr::Image, gdr::Image> p{to_image(img, std::string(fn) + ": image"), to_image(ref, std::string(fn) + ": reference")};
+    require_same_shape(p.first, "image", p.second, "reference", fn);
+    return p;
 }
 
 /// Python source of gdr.Layers: a dict subclass, so that it is Python's own mapping, with two attributes added.
@@ -472,6 +507,366 @@ class Layers(dict):
         shapes = ", ".join(f"{k!r}: {v.shape}" for k, v in self.items())
         return f"gdr.Layers({{{shapes}}}, stats={self.stats!r})"
 )PY";
+
+// ------------------------------------------------------------------ render files, previews, merges, plugins
+// (what the gdr tool reads back, and reconstructors from Python and plugins)
+
+/// Adds to a fresh render's metadata the header gdr render writes (gdr/io/render_header.h),
+/// so that gdr info, --resume and gdr merge accept its EXR.
+void record_render(gdr::FrameBuffer& fb, const PyScene& scene, const std::string& integrator,
+                   const gdr::RenderSettings& st, const gdr::RenderStats& stats) {
+    gdr::RenderRecord r;
+    r.integrator = integrator;
+    std::error_code ec;
+    const fs::path abs = fs::absolute(scene.sf.path, ec);
+    r.scene = ec ? scene.sf.path : abs.string();
+    r.scene_hash = scene.sf.content_hash;
+    r.seconds = stats.seconds;
+    r.time_budget = st.time_budget;
+    // As gdr render: an adaptive render's target is the passes after its pilot's share.
+    const auto pilot = fb.metadata().find("adaptive_pilot_spp");
+    const long long pilot_spp = pilot != fb.metadata().end() && st.time_budget <= 0.0 ? std::stoll(pilot->second) : 0;
+    if (st.time_budget <= 0.0) r.target_spp = uint64_t(st.first_sample + st.spp - pilot_spp);
+    r.samples = {st.seed, uint64_t(st.first_sample), uint64_t(stats.spp)};
+    r.version = GDR_VERSION;
+    write_render_record(fb, r);
+}
+
+/// Throws ParameterError unless `path` ends in `ext` (any case): a file's name says what it holds.
+void require_extension(const fs::path& path, const std::string& ext, const std::string& fn) {
+    std::string e = path.extension().string();
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (e != ext)
+        throw gdr::ParameterError(fn + ": '" + path.string() + "' must end in " + ext + " (" + fn +
+                                  " writes only that format)");
+}
+
+/// The image a preview shows: an array, or the preview layer of a layers dict (as the gdr tool chooses it).
+gdr::Image preview_image(const py::object& image, const std::string& what) {
+    if (py::isinstance<py::dict>(image)) {
+        gdr::FrameBuffer fb;
+        for (const auto& [k, v] : py::cast<py::dict>(image)) fb.set(py::str(k), to_image(v, what + ": layer '" + std::string(py::str(k)) + "'"));
+        if (fb.names().empty()) throw gdr::ParameterError(what + ": no layers");
+        return fb.get(gdr::preview_layer(fb));
+    }
+    return to_image(image, what);
+}
+
+/// gdr.write_png: the 8-bit sRGB preview gdr render writes beside its EXR.
+void write_png(const fs::path& path, const py::object& image, float exposure) {
+    require_extension(path, ".png", "write_png");
+    if (!std::isfinite(exposure)) throw gdr::ParameterError("write_png: exposure must be a finite number of stops");
+    const gdr::Image img = preview_image(image, "write_png");
+    gdr::require_finite(img, "write_png: " + path.string());
+    try {
+        py::gil_scoped_release nogil;
+        gdr::write_png_preview(path.string(), img, exposure);
+    } catch (const gdr::RuntimeFailure& e) {
+        PyErr_SetObject(PyExc_OSError, py::make_tuple(EIO, e.what(), path.string()).ptr());
+        throw py::error_already_set();
+    }
+}
+
+/// gdr.tonemap: the preview's 8-bit pixels (height, width, 1, 3 or 4) as a uint8 array.
+py::array_t<uint8_t> tonemap(const py::object& image, float exposure) {
+    if (!std::isfinite(exposure)) throw gdr::ParameterError("tonemap: exposure must be a finite number of stops");
+    const gdr::Image img = preview_image(image, "tonemap");
+    std::vector<uint8_t> bytes = gdr::preview_bytes(img, exposure);
+    const py::ssize_t h = img.height(), w = img.width(), c = py::ssize_t(bytes.size()) / (h * w);
+    py::array_t<uint8_t> out({h, w, c});
+    std::copy(bytes.begin(), bytes.end(), out.mutable_data());
+    return out;
+}
+
+/// A FrameBuffer of a {name: array} dict (copies) and its metadata (a gdr.Layers' .metadata, if any).
+gdr::FrameBuffer frame_of(const py::handle& layers, const std::string& what) {
+    if (!py::isinstance<py::dict>(layers))
+        throw py::type_error(what + ": expected a dict of arrays (a gdr.Layers), got " +
+                             std::string(py::str(py::type::of(layers).attr("__name__"))));
+    gdr::FrameBuffer fb;
+    for (const auto& [k, v] : py::cast<py::dict>(layers)) {
+        const std::string name = py::str(k);
+        gdr::Image img = to_image(v, what + ": layer '" + name + "'");
+        if (!fb.names().empty() && (img.width() != fb.width() || img.height() != fb.height()))
+            throw gdr::ParameterError(what + ": layer '" + name + "' is " + std::to_string(img.height()) + " x " +
+                                      std::to_string(img.width()) + ", the others " + std::to_string(fb.height()) +
+                                      " x " + std::to_string(fb.width()) + " (height x width)");
+        fb.set(name, std::move(img));
+    }
+    if (py::hasattr(layers, "metadata"))
+        for (const auto& [k, v] : py::cast<py::dict>(layers.attr("metadata"))) fb.metadata()[py::str(k)] = py::str(v);
+    return fb;
+}
+
+/// gdr._reconstruct_layers: `method` on a render's layers (primal, dx, dy, and what the method needs).
+py::array_t<float> reconstruct_layers(const py::object& layers, const std::string& method, const py::dict& params) {
+    gdr::Params p("reconstruct(" + method + ")");
+    for (const auto& [k, v] : params) set_param(p, py::str(k), v);
+    const gdr::FrameBuffer fb = frame_of(layers, "reconstruct");
+    gdr::GradientBuffers gb = gdr::gradient_buffers(fb);
+    // As gpt does for a render without an 'spp' layer: its metadata's count in every pixel.
+    gdr::Image spp;
+    const auto n = fb.metadata().find("spp");
+    if (!gb.spp && n != fb.metadata().end()) {
+        spp = gdr::Image(fb.width(), fb.height(), 1);
+        std::fill(spp.values().begin(), spp.values().end(), float(std::stod(n->second)));
+        gb.spp = &spp;
+    }
+    auto r = gdr::reconstructor_registry().create(method, p);
+    gdr::Image out;
+    {
+        py::gil_scoped_release nogil;
+        out = r->reconstruct(gb);
+    }
+    return to_array(std::move(out));
+}
+
+/// A reconstructor written in Python (gdr.register_reconstructor): solve() passes the frame's
+/// layers as {name: array (height, width, channels)} and the parameters as keywords to `fn`.
+class PythonReconstructor final : public gdr::Reconstructor {
+public:
+    /// `fn` is called as fn(layers, **params); `params` are all taken (fn refuses what it does not know).
+    PythonReconstructor(std::string name, py::object fn, const gdr::Params& params)
+        : name_(std::move(name)), fn_(new py::object(std::move(fn)), [](py::object* o) {
+              py::gil_scoped_acquire gil;
+              delete o;
+          }),
+          params_(params) {
+        for (const auto& [k, v] : params.values()) {
+            if (std::holds_alternative<bool>(v)) (void)params.get_bool(k, false);
+            else if (std::holds_alternative<long long>(v)) (void)params.get_int(k, 0);
+            else if (std::holds_alternative<double>(v)) (void)params.get_real(k, 0.0);
+            else (void)params.get_string(k, "");
+        }
+    }
+    std::string describe() const override {
+        std::string s;
+        for (const auto& [k, v] : params_.values())
+            std::visit([&](const auto& x) {
+                if constexpr (std::is_same_v<std::decay_t<decltype(x)>, std::string>) s += k + "=" + x + "\n";
+                else s += k + "=" + std::to_string(x) + "\n";
+            }, v);
+        return s;
+    }
+
+protected:
+    gdr::Image solve(const gdr::GradientBuffers& in) const override {
+        py::gil_scoped_acquire gil;
+        py::dict layers;
+        const auto add = [&](const char* name, const gdr::Image* img) {
+            if (img && !img->empty()) layers[name] = to_array(gdr::Image(*img));
+        };
+        if (in.layers)
+            for (const std::string& n : in.layers->names()) layers[py::str(n)] = to_array(gdr::Image(in.layers->get(n)));
+        add("primal", in.primal), add("dx", in.dx), add("dy", in.dy), add("direct", in.direct);
+        add("primal_variance", in.primal_variance), add("dx_variance", in.dx_variance);
+        add("dy_variance", in.dy_variance), add("spp", in.spp);
+        py::object result = (*fn_)(layers, **params_dict(params_));
+        gdr::Image out = to_image(result, "reconstructor '" + name_ + "': its result");
+        if (out.width() != in.primal->width() || out.height() != in.primal->height() ||
+            out.channels() != in.primal->channels())
+            throw gdr::ParameterError("reconstructor '" + name_ + "' returned an image of " +
+                                      std::to_string(out.height()) + " x " + std::to_string(out.width()) + " x " +
+                                      std::to_string(out.channels()) + ", not the primal's " +
+                                      std::to_string(in.primal->height()) + " x " + std::to_string(in.primal->width()) +
+                                      " x " + std::to_string(in.primal->channels()) + " (height x width x channels)");
+        return out;
+    }
+
+private:
+    std::string name_;
+    std::shared_ptr<py::object> fn_;  // released with the GIL held, whichever thread drops the last reference
+    gdr::Params params_;
+};
+
+/// gdr._register_python_reconstructor: adds `fn` to the reconstructor registry under `name`.
+void register_python_reconstructor(const std::string& name, const py::object& fn, const std::string& description) {
+    if (name.empty()) throw gdr::ParameterError("register_reconstructor: the name is empty");
+    if (!PyCallable_Check(fn.ptr()))
+        throw py::type_error("register_reconstructor: fn must be callable as fn(layers, **params), got " +
+                             std::string(py::str(py::type::of(fn).attr("__name__"))));
+    auto shared = std::shared_ptr<py::object>(new py::object(fn), [](py::object* o) {
+        // The registry outlives the interpreter's last reference: drop ours only while Python runs.
+        if (Py_IsInitialized()) {
+            py::gil_scoped_acquire gil;
+            delete o;
+        }
+    });
+    gdr::reconstructor_registry().add(name, description, [name, shared](const gdr::Params& p) {
+        py::gil_scoped_acquire gil;
+        return std::unique_ptr<gdr::Reconstructor>(new PythonReconstructor(name, *shared, p));
+    });
+}
+
+/// gdr._merge_layers: two renders of one scene and integrator pooled (gdr/integrators/integrator.h's
+/// merge_renders), with the layers that are not sample means recomputed by the integrator.
+py::object merge_layers(const py::object& a, const py::object& b) {
+    gdr::FrameBuffer into = frame_of(a, "merge: the first render");
+    const gdr::FrameBuffer other = frame_of(b, "merge: the second render");
+    const auto& m = into.metadata();
+    for (const char* k : {"integrator", "integrator_params"})
+        if (!m.count(k)) throw gdr::InputError(std::string("merge: the first render has no '") + k + "' metadata (not a gdr render)");
+    gdr::Params p("merge: " + m.at("integrator") + " (integrator_params)");
+    const std::string& lines = m.at("integrator_params");
+    for (size_t at = 0; at < lines.size();) {
+        const size_t end = std::min(lines.find('\n', at), lines.size());
+        if (end > at) p.set_from_text(lines.substr(at, end - at));
+        at = end + 1;
+    }
+    auto integ = gdr::integrator_registry().create(m.at("integrator"), p);
+    {
+        py::gil_scoped_release nogil;
+        gdr::merge_renders(into, other);
+        integ->update_merged(into);
+    }
+    return make_layers(into, py::none());
+}
+
+/// The plugins loaded so far (file -> registered), so that loading one twice does nothing.
+std::map<std::string, bool> g_plugins;
+
+/// gdr.load_plugin: loads a reconstructor plugin (the neural reconstructor's libgdr_neural_plugin.so)
+/// and registers its reconstructors; returns the file loaded.
+std::string load_plugin_file(const fs::path& file) {
+    std::error_code ec;
+    const std::string path = fs::weakly_canonical(file, ec).string();
+    if (g_plugins.count(path)) return path;
+    if (!fs::is_regular_file(path, ec)) {
+        PyErr_SetObject(PyExc_FileNotFoundError, py::make_tuple(ENOENT, "load_plugin: no plugin file", file.string()).ptr());
+        throw py::error_already_set();
+    }
+    // As the gdr tool: libtorch's OpenMP threads must not spin between parallel regions.
+    setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
+    // RTLD_LOCAL: the plugin's own copy of libgdr must not take the place of this module's symbols.
+    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+        const char* e = dlerror();
+        throw gdr::InputError("load_plugin: " + path + ": " + (e ? e : "dlopen failed"));
+    }
+    using AbiFn = const char* (*)();
+    using AddFn = void (*)(gdr::Registry<gdr::Reconstructor>*);
+    const auto abi = reinterpret_cast<AbiFn>(dlsym(handle, "gdr_plugin_abi"));
+    const auto add = reinterpret_cast<AddFn>(dlsym(handle, "gdr_plugin_register_reconstructors"));
+    if (!abi || !add) {
+        dlclose(handle);
+        throw gdr::InputError("load_plugin: " + path + " exports no gdr_plugin_abi / gdr_plugin_register_reconstructors: "
+                              "not a gdr plugin");
+    }
+    if (std::string(abi()) != GDR_PLUGIN_ABI) {
+        const std::string theirs = abi();
+        dlclose(handle);
+        throw gdr::InputError("load_plugin: " + path + " was built for " + theirs + ", this module is " + GDR_PLUGIN_ABI +
+                              " (build and install the two together)");
+    }
+    add(&gdr::reconstructor_registry());  // never unloaded: the registry holds its factories
+    g_plugins[path] = true;
+    return path;
+}
+
+/// The directories gdr.load_plugin() searches without a path: $GDR_PLUGIN_PATH (colon-separated)
+/// if set, else beside the module: gdr-data/LIBDIR/gdr (a pip install), ../LIBDIR/gdr (the build
+/// tree) and ../../gdr (a cmake --install prefix's lib/pythonX.Y/dist-packages).
+std::vector<std::string> plugin_dirs(const std::string& module_file) {
+    std::vector<std::string> dirs;
+    if (const char* env = std::getenv("GDR_PLUGIN_PATH")) {
+        const std::string s = env;
+        for (size_t at = 0; at <= s.size();) {
+            const size_t end = std::min(s.find(':', at), s.size());
+            if (end > at) dirs.push_back(s.substr(at, end - at));
+            at = end + 1;
+        }
+        return dirs;
+    }
+    const fs::path here = fs::path(module_file).parent_path();
+    for (const fs::path& d : {here / "gdr-data" / GDR_LIBDIR / "gdr", here / ".." / GDR_LIBDIR / "gdr", here / ".." / ".." / "gdr"})
+        dirs.push_back(d.lexically_normal().string());
+    return dirs;
+}
+
+/// gdr.load_plugin(path=None): a given file, or the neural plugin from plugin_dirs().
+std::string load_plugin(const std::optional<fs::path>& file, const std::string& module_file) {
+    if (file) return load_plugin_file(*file);
+    std::string searched;
+    for (const std::string& d : plugin_dirs(module_file)) {
+        const fs::path f = fs::path(d) / "libgdr_neural_plugin.so";
+        std::error_code ec;
+        if (fs::is_regular_file(f, ec)) return load_plugin_file(f);
+        searched += (searched.empty() ? "" : ", ") + d;
+    }
+    throw gdr::ParameterError("load_plugin: no libgdr_neural_plugin.so in " + (searched.empty() ? "(no directory)" : searched) +
+                              " (the neural reconstructor is built where CMake finds libtorch, Debian: libtorch-dev; "
+                              "GDR_PLUGIN_PATH names other directories)");
+}
+
+/// Binds the functions of this section into the module.
+void bind_package(py::module_& m) {
+    m.def("write_png", &write_png, py::arg("path"), py::arg("image"), py::arg("exposure") = 0.0f,
+          "write_png(path, image, exposure=0.0)\n\n"
+          "Writes the 8-bit sRGB preview gdr render writes beside its EXR: the image (an array, or\n"
+          "the layer a render's preview shows of a gdr.Layers: its reconstruction, else 'color')\n"
+          "scaled by 2**exposure, clamped to [0, 1]. path must end in .png (gdr.ParameterError).");
+    m.def("tonemap", &tonemap, py::arg("image"), py::arg("exposure") = 0.0f,
+          "tonemap(image, exposure=0.0) -> uint8 array (height, width, channels)\n\n"
+          "The pixels write_png stores: sRGB of the linear image scaled by 2**exposure, clamped.");
+    m.def("_reconstruct_layers", &reconstruct_layers, py::arg("layers"), py::arg("method"), py::arg("params"));
+    m.def("_register_python_reconstructor", &register_python_reconstructor, py::arg("name"), py::arg("fn"),
+          py::arg("description"));
+    m.def("_merge_layers", &merge_layers, py::arg("a"), py::arg("b"));
+    m.def(
+        "_load_scene_text",
+        [](const std::string& text, const std::string& name) {
+            auto scene = std::make_shared<PyScene>();
+            py::gil_scoped_release nogil;
+            scene->sf = gdr::load_scene_text(text, name);
+            return scene;
+        },
+        py::arg("text"), py::arg("name"));
+    m.def(
+        "_set_camera",
+        [](PyScene& s, const py::dict& changes, const std::string& hash_salt) {
+            s.require_idle("change the camera");
+            if (s.sf.animation) throw gdr::ParameterError(s.sf.path + ": an animated scene's camera follows its keys");
+            gdr::CameraDesc d = s.sf.scene->camera().desc();
+            const auto vec = [&](const char* k, gdr::Vec3& v) {
+                if (!changes.contains(k)) return;
+                const auto a = changes[k].cast<std::vector<float>>();
+                if (a.size() != 3 || !std::isfinite(a[0]) || !std::isfinite(a[1]) || !std::isfinite(a[2]))
+                    throw gdr::ParameterError(std::string("camera.") + k + " must be 3 finite numbers");
+                v = gdr::Vec3(a[0], a[1], a[2]);
+            };
+            vec("position", d.position), vec("target", d.target), vec("up", d.up);
+            if (changes.contains("fov")) d.fov_deg = changes["fov"].cast<float>();
+            if (changes.contains("fov_axis")) {
+                const auto axis = changes["fov_axis"].cast<std::string>();
+                if (axis != "x" && axis != "y") throw gdr::ParameterError("camera.fov_axis must be 'x' or 'y', got '" + axis + "'");
+                d.fov_axis = axis[0];
+            }
+            if (changes.contains("width")) d.width = changes["width"].cast<int>();
+            if (changes.contains("height")) d.height = changes["height"].cast<int>();
+            s.sf.scene->set_camera(gdr::Camera(d));  // rejects a degenerate camera
+            // Renders of the moved camera are renders of another image: the hash (of the
+            // loaded scene's hash and the camera, given by the caller) says so.
+            uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64
+            for (unsigned char b : hash_salt) h = (h ^ b) * 0x100000001b3ull;
+            char hex[17];
+            std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
+            s.sf.content_hash = hex;
+        },
+        py::arg("scene"), py::arg("changes"), py::arg("hash_salt"));
+    m.def(
+        "_replace_scene",
+        [](PyScene& target, PyScene& source) {
+            target.require_idle("update the scene");
+            target.sf = std::move(source.sf);
+        },
+        py::arg("target"), py::arg("source"));
+    m.def(
+        "_load_plugin",
+        [](const std::optional<fs::path>& file) {
+            return load_plugin(file, py::module_::import("gdr").attr("__file__").cast<std::string>());
+        },
+        py::arg("path") = py::none());
+}
 
 }  // namespace
 
@@ -549,7 +944,8 @@ PYBIND11_MODULE(gdr, m) {
                    ", nonfinite=" + std::to_string(s.nonfinite) + ")";
         });
 
-    py::class_<PyScene, std::shared_ptr<PyScene>>(m, "Scene", "A loaded scene file, ready to render (see load_scene).")
+    py::class_<PyScene, std::shared_ptr<PyScene>>(m, "Scene", "A loaded scene file, ready to render (see load_scene).",
+                                                  py::dynamic_attr())
         .def_property_readonly("path", [](const PyScene& s) { return s.sf.path; }, "The file it was loaded from.")
         .def_property_readonly("width", [](const PyScene& s) { return s.sf.scene->camera().width(); },
                                "Image width (pixels).")
@@ -745,4 +1141,8 @@ PYBIND11_MODULE(gdr, m) {
         py::arg("image"), py::arg("factor"),
         "box_downsample(image, factor) -> array: each output pixel the mean of a factor x factor block "
         "(factor must divide both sides).");
+
+    bind_package(m);
+    // The Python half of the module (python/gdr_api.py): wrappers that add Python's own manners.
+    py::exec(kApiSource, m.attr("__dict__"));
 }

@@ -10,7 +10,12 @@
 # are left disabled, so the machine runs no Slurm or munge daemon afterwards.
 # And python3-dev, pybind11-dev, python3-numpy and python3-matplotlib, for the
 # Python module and its example (without them the module is not built and its
-# tests are reported as skipped), and libtorch-dev, for the optional neural
+# tests are reported as skipped); python3-venv, python3-setuptools,
+# python3-wheel and python3-build, for `pip install .` and `python3 -m build`
+# of the package offline (the test of them is skipped without them);
+# python3-tqdm, which draws the module's progress=True bar; ccache,
+# which a package build that configures its own CMake tree compiles through,
+# so that a second build of the same sources costs little; and libtorch-dev, for the optional neural
 # reconstructor (CMake skips that target without it). And ffmpeg, for gdr video's
 # MP4 output (without it gdr video writes the PNG sequence, and its MP4 test is
 # skipped).
@@ -20,7 +25,8 @@ set -euo pipefail
 packages=(cmake g++ make pkg-config libembree-dev libglm-dev libopenexr-dev libtinyobjloader-dev catch2 libfmt-dev
           libtbb-dev libfftw3-dev nlohmann-json3-dev libstb-dev libpugixml-dev zlib1g-dev)
 optional=(slurm-wlm munge)
-optional_python=(python3-dev pybind11-dev python3-numpy python3-matplotlib)
+optional_python=(python3-dev pybind11-dev python3-numpy python3-matplotlib python3-venv python3-setuptools python3-wheel
+                 python3-build python3-tqdm ccache)
 optional_neural=(libtorch-dev)
 optional_video=(ffmpeg)
 installed() {

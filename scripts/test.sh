@@ -9,7 +9,10 @@
 # scalar build also checks that gdr builds and tests without it. The Slurm
 # test (tests/slurm.sh) runs where slurm-wlm and munge are installed and the
 # user is root, and is reported as skipped elsewhere; so are the Python
-# module's tests (tests/python) where the module is not built.
+# module's tests (tests/python) where the module is not built. Among those,
+# python.pip_install installs the package with pip into a fresh virtual
+# environment (reusing the module just built, so it compiles nothing) and
+# runs the Python suite against the installed package.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 # What the suite will skip, said up front (ctest's summary lists it again at

@@ -437,17 +437,19 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         meta["frame_base_seed"] = std::to_string(base_seed);
         meta["fps"] = fmt::format("{}", sf.animation->range().fps);
     }
-    meta["integrator"] = name;
-    meta["scene"] = identity.scene;
-    if (!identity.scene_hash.empty()) meta["scene_hash"] = identity.scene_hash;
-    meta["render_seconds"] = fmt::format("{:.3f}", rs.seconds);
-    meta["time_budget"] = fmt::format("{}", st.time_budget);
+    RenderRecord record;
+    record.integrator = name;
+    record.scene = identity.scene;
+    record.scene_hash = identity.scene_hash;
+    record.seconds = rs.seconds;
+    record.time_budget = st.time_budget;
     // An adaptive render's target is the passes after its pilot's share.
     const long long pilot_spp = adaptive > 0.0 && st.time_budget <= 0.0 ? std::stoll(meta.at("adaptive_pilot_spp")) : 0;
-    if (st.time_budget <= 0.0) meta["target_spp"] = std::to_string(st.first_sample + st.spp - pilot_spp);
-    meta["sample_ranges"] = format_sample_ranges({{st.seed, uint64_t(st.first_sample), uint64_t(rs.spp)}});
-    meta["gdr_version"] = version();
-    meta["interrupted"] = interrupted ? "true" : "false";
+    if (st.time_budget <= 0.0) record.target_spp = uint64_t(st.first_sample + st.spp - pilot_spp);
+    record.samples = {st.seed, uint64_t(st.first_sample), uint64_t(rs.spp)};
+    record.version = version();
+    record.interrupted = interrupted;
+    write_render_record(fb, record);
     // From here on a failure must not lose the samples: the new part alone is
     // a valid render (gdr merge or --resume take it) and goes to the rescue file.
     FrameBuffer new_part;  // --continue: the new samples alone, for the rescue file

@@ -106,26 +106,6 @@ constexpr const char* kRenderSettings[] = {"integrator", "integrator_params", "s
 
 }  // namespace
 
-std::string format_sample_ranges(const std::vector<SampleRange>& ranges) {
-    std::string s;
-    for (const SampleRange& r : ranges) s += fmt::format("{}{}:{}:{}", s.empty() ? "" : ",", r.seed, r.first, r.count);
-    return s;
-}
-
-std::vector<SampleRange> normalized_ranges(std::vector<SampleRange> ranges) {
-    std::sort(ranges.begin(), ranges.end(), [](const SampleRange& a, const SampleRange& b) {
-        return a.seed != b.seed ? a.seed < b.seed : a.first < b.first;
-    });
-    std::vector<SampleRange> out;
-    for (const SampleRange& r : ranges) {
-        if (!out.empty() && out.back().seed == r.seed && out.back().first + out.back().count == r.first)
-            out.back().count += r.count;
-        else
-            out.push_back(r);
-    }
-    return out;
-}
-
 bool looks_like_render(const FrameBuffer& fb) {
     for (const char* k : kRenderSettings)
         if (fb.metadata().count(k)) return true;
@@ -335,15 +315,6 @@ std::string write_render(const std::string& out, const FrameBuffer& fb, float ex
     const std::string layer = preview_layer(fb);
     write_png_preview(png, fb.get(layer), exposure);
     return png + " (" + layer + ")";
-}
-
-std::string preview_layer(const FrameBuffer& fb) {
-    // A gradient-domain render is shown as its variance-weighted (else L1)
-    // reconstruction, anything else as its colour. The neural one comes
-    // first: a render holds it only when it was asked for (reconstruct=neural).
-    for (const char* name : {"reconstruction_neural", "reconstruction_weighted", "reconstruction_l1", "color"})
-        if (fb.has(name)) return name;
-    return fb.names().front();
 }
 
 std::string write_exr_or_rescue(const std::string& path, const FrameBuffer& fb) {

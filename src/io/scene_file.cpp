@@ -97,8 +97,12 @@ constexpr size_t kMaxJsonDepth = 100;
 
 // Parses a JSON file. A key given twice in one object is an error: the parser
 // would keep only the last value, silently dropping a setting the user wrote.
-json parse_json_file(const std::string& file) {
-    const std::string text = read_file_text(file);
+json parse_json_text(const std::string& file, const std::string& text);
+
+json parse_json_file(const std::string& file) { return parse_json_text(file, read_file_text(file)); }
+
+// Parses JSON `text`, named `file` in messages (duplicate keys refused as in parse_json_file).
+json parse_json_text(const std::string& file, const std::string& text) {
     // The open objects and arrays: their key path for messages, and an object's keys so far.
     struct Open {
         bool object;
@@ -543,6 +547,76 @@ void check_material_colours(const MaterialDesc& d) {
 }  // namespace
 
 
+namespace {
+
+// A mesh given by its arrays (meshes[i] = {"vertices": [[x, y, z], ...], "triangles":
+// [[i, j, k], ...] (0-based), "material": NAME of a `materials` entry, which then
+// defines it from scratch, "transform"}), as the OBJ reader stores one: flat faces, no
+// texture coordinates, winding reversed under a mirroring transform.
+void load_inline_mesh(const std::string& file, const std::string& where, const json& m, const Mat4& xf,
+                      const std::map<std::string, Override>& overrides, std::set<std::string>& used,
+                      TriangleMesh& mesh, std::vector<Material>& materials) {
+    const json& v = m["vertices"];
+    if (!v.is_array() || v.empty()) fail(file, "'" + where + ".vertices' must be a non-empty array of [x, y, z]");
+    std::vector<Vec3> vs;
+    for (size_t i = 0; i < v.size(); ++i) {
+        const std::string at = where + ".vertices[" + std::to_string(i) + "]";
+        const std::vector<double> x = finite_numbers(file, at, v[i], 3, "[x, y, z]");
+        vs.push_back(Vec3(xf * Vec4(float(x[0]), float(x[1]), float(x[2]), 1.f)));
+    }
+    if (!m.contains("triangles") || !m["triangles"].is_array() || m["triangles"].empty())
+        fail(file, "'" + where + ".triangles' must be a non-empty array of [i, j, k] (0-based vertex indices)");
+    uint32_t id;
+    if (m.contains("material")) {
+        const std::string name = get_string(file, m["material"], where + ".material");
+        const auto it = overrides.find(name);
+        if (it == overrides.end())
+            fail(file, "'" + where + ".material' names '" + name + "', which 'materials' does not define");
+        used.insert(name);
+        MaterialDesc d;
+        d.name = name;
+        d = apply_override(file, d, it->second);
+        Material mat;
+        mat.name = name;
+        mat.emission = d.ke;
+        try {
+            check_material_colours(d);
+            mat.bsdf = it->second.type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, it->second.type);
+        } catch (const Error& e) {
+            fail(file, "materials." + name + ": " + e.what());
+        }
+        id = uint32_t(materials.size());
+        materials.push_back(std::move(mat));
+    } else {
+        id = uint32_t(materials.size());
+        materials.push_back(Material{"(default)", make_lambertian(make_constant_texture(Color(0.5f))), Color(0.f)});
+    }
+    const bool flip = glm::determinant(glm::mat3(xf)) < 0.f;
+    const json& t = m["triangles"];
+    for (size_t f = 0; f < t.size(); ++f) {
+        const std::string at = where + ".triangles[" + std::to_string(f) + "]";
+        if (!t[f].is_array() || t[f].size() != 3) fail(file, "'" + at + "' must be [i, j, k]");
+        Vec3 p[3];
+        for (int k = 0; k < 3; ++k) {
+            const json& x = t[f][k];
+            if (!x.is_number_integer() || x.get<long long>() < 0 || x.get<long long>() >= (long long)vs.size())
+                fail(file, "'" + at + "' holds " + x.dump() + ", not a vertex index in [0, " +
+                           std::to_string(vs.size() - 1) + "]");
+            p[k] = vs[size_t(x.get<long long>())];
+        }
+        if (flip) std::swap(p[1], p[2]);
+        const Vec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
+        for (int k = 0; k < 3; ++k) {
+            mesh.positions.push_back(p[k]);
+            mesh.normals.push_back(n);
+            mesh.uvs.push_back(Vec2(0.f));
+        }
+        mesh.material_ids.push_back(id);
+    }
+}
+
+}  // namespace
+
 // `mtl`: a material library read instead of the OBJ's own `mtllib` ("" = the
 // OBJ's own); its textures are then relative to it. The files read are
 // appended to `inputs` (if given).
@@ -731,6 +805,7 @@ void load_obj(const std::string& path, const Mat4& transform, TriangleMesh& mesh
 }
 
 static SceneFile load_scene_file_impl(const std::string& path);
+static SceneFile load_scene_json(json j, const std::string& path, const fs::path& dir, bool is_file);
 
 // Mitsuba XML: by the name, or by a first character no JSON file starts with.
 static bool is_mitsuba_xml(const std::string& path) {
@@ -774,7 +849,12 @@ static SceneFile load_scene_file_impl(const std::string& path) {
             hint = " (did you mean " + (fs::path(path) / "scene.json").string() + "?)";
         throw InputError(path + ": is a directory, not a scene file" + hint);
     }
-    json j = parse_json_file(path);
+    return load_scene_json(parse_json_file(path), path, fs::path(path).parent_path(), true);
+}
+
+// A scene from its JSON value: `path` names it in messages and in SceneFile::path,
+// relative files are found in `dir`; `is_file`: `path` is a file, hashed first of its inputs.
+static SceneFile load_scene_json(json j, const std::string& path, const fs::path& dir, bool is_file) {
     check_keys(path, "the scene", j,
                {"camera", "meshes", "materials", "render", "description", "environment", "lights", "animation"});
     if (!j.contains("camera")) fail(path, "missing 'camera'");
@@ -783,7 +863,8 @@ static SceneFile load_scene_file_impl(const std::string& path) {
 
     SceneFile sf;
     sf.path = path;
-    std::vector<std::string> inputs{path};
+    std::vector<std::string> inputs;
+    if (is_file) inputs.push_back(path);
     // Keyframes (animation.h) come apart from the camera's fixed description.
     std::optional<AnimationRange> range;
     if (j.contains("animation")) range = parse_animation(path, j["animation"]);
@@ -823,7 +904,6 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     TriangleMesh mesh;
     std::vector<Material> materials;
     std::set<std::string> used;
-    const fs::path dir = fs::path(path).parent_path();
     std::vector<TransformTrack> tracks;
     bool any_keys = !camera_track.empty();
     for (const auto& m : j["meshes"]) {
@@ -833,6 +913,11 @@ static SceneFile load_scene_file_impl(const std::string& path) {
         if (m.is_string()) {
             file = (dir / m.get<std::string>()).string();
             load_obj_impl(file, Mat4(1.f), mesh, materials, &overrides, path, &used, "", &inputs);
+        } else if (m.is_object() && m.contains("vertices")) {
+            check_keys(path, where, m, {"vertices", "triangles", "material", "transform"});
+            const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
+            file = where;
+            load_inline_mesh(path, where, m, xf, overrides, used, mesh, materials);
         } else {
             check_keys(path, "meshes[]", m, {"file", "transform", "mtl", "keys"});
             if (m.contains("keys")) {
@@ -917,8 +1002,24 @@ static SceneFile load_scene_file_impl(const std::string& path) {
     std::set<std::string> seen;
     for (std::string& f : inputs)
         if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
-    sf.content_hash = scene_content_hash(path, sf.inputs);
+    if (is_file) {
+        sf.content_hash = scene_content_hash(path, sf.inputs);
+    } else {
+        // No file holds the scene: its JSON text stands first, then the files it read.
+        uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64, as scene_content_hash
+        for (const std::string& part : {j.dump(), scene_content_hash(path, sf.inputs)})
+            for (unsigned char b : part + '\0') h = (h ^ b) * 0x100000001b3ull;
+        sf.content_hash = fmt::format("{:016x}", h);
+    }
     return sf;
+}
+
+SceneFile load_scene_text(const std::string& text, const std::string& name) {
+    try {
+        return load_scene_json(parse_json_text(name, text), name, fs::path(name).parent_path(), false);
+    } catch (const json::exception& e) {
+        throw InputError(name + ": " + e.what());
+    }
 }
 
 std::string scene_content_hash(const std::string& scene_path, const std::vector<std::string>& inputs) {

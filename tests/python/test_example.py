@@ -33,5 +33,29 @@ class Example(unittest.TestCase):
         self.assertIn("--spp", r.stderr)
 
 
+SWEEP = os.path.join(SOURCE_DIR, "examples", "python", "roughness_sweep.py")
+
+
+@unittest.skipUnless(importlib.util.find_spec("matplotlib"), "matplotlib is not installed (Debian: python3-matplotlib)")
+class RoughnessSweep(unittest.TestCase):
+    def test_the_sweep_writes_its_plot_and_one_row_per_roughness_and_spp(self):
+        out = os.path.join(scratch_dir("sweep"), "sweep.png")
+        r = subprocess.run([sys.executable, SWEEP, "--width", "24", "--spp", "1,2", "--ref-spp", "16",
+                            "--roughness", "0.05,0.4", "--threads", "2", "--out", out],
+                           capture_output=True, text=True, timeout=240)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        with open(out, "rb") as f:
+            self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n")
+        rows = [line.split() for line in r.stdout.splitlines() if line[:1].isdigit()]
+        self.assertEqual([(row[0], row[1]) for row in rows], [("0.05", "1"), ("0.05", "2"), ("0.4", "1"), ("0.4", "2")])
+        for row in rows:
+            self.assertTrue(all(float(x) >= 0 for x in row[2:]), row)
+
+    def test_bad_options_are_refused(self):
+        r = subprocess.run([sys.executable, SWEEP, "--roughness", "0,0.1", "--out", "x.png"], capture_output=True, text=True)
+        self.assertNotEqual(r.returncode, 0)
+        self.assertIn("--roughness", r.stderr)
+
+
 if __name__ == "__main__":
     unittest.main()

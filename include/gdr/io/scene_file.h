@@ -93,6 +93,16 @@ SceneFile load_scene_file(const std::string& path, const SceneFileOptions& optio
 /// keys or references missing or malformed meshes.
 SceneFile load_scene_file(const std::string& path);
 
+/// Loads a scene from JSON text in the scene file format (a Python dict's
+/// json.dumps, say), as load_scene_file() loads a file: `name` stands for the
+/// file in messages and SceneFile::path, and relative paths inside are
+/// resolved from its directory. A mesh may also be given by its arrays:
+/// {"vertices": [[x, y, z], ...], "triangles": [[i, j, k], ...] (0-based),
+/// "material": NAME, "transform": {...}}, where the `materials` entry NAME
+/// defines the material ("type" and its values over MTL defaults); its faces
+/// are flat. content_hash covers the text and every file it names.
+SceneFile load_scene_text(const std::string& text, const std::string& name);
+
 /// FNV-1a 64 hash, as 16 lowercase hex digits, of the files `inputs` in the given
 /// order: each one's path relative to the directory of `scene_path`, its size
 /// and its bytes. A copy of the whole scene elsewhere hashes the same. Throws

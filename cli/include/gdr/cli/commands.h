@@ -9,6 +9,7 @@
 
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
+#include "gdr/io/render_header.h"
 
 namespace gdr::cli {
 
@@ -24,23 +25,6 @@ int stop_status();
 int render(const std::vector<std::string>& args);
 /// gdr merge A.exr B.exr [...] -o OUT.exr
 int merge(const std::vector<std::string>& args);
-
-/// The "seed" (and "first_sample") metadata of a render merged from several
-/// seeds: it has no single sample sequence, so --resume refuses it; its
-/// "sample_ranges" entry says which samples it holds.
-inline const std::string kMixedSeeds = "mixed";
-
-/// A run of consecutive sample numbers of one seed, taken in every pixel.
-struct SampleRange {
-    uint64_t seed = 0;   ///< Sampler seed.
-    uint64_t first = 0;  ///< Number of the first sample in each pixel.
-    uint64_t count = 0;  ///< Samples per pixel in the run.
-};
-
-/// `ranges` as the "sample_ranges" header entry: "seed:first:count", comma-separated.
-std::string format_sample_ranges(const std::vector<SampleRange>& ranges);
-/// `ranges` sorted by seed and first sample, with adjacent runs of one seed joined.
-std::vector<SampleRange> normalized_ranges(std::vector<SampleRange> ranges);
 
 /// Throws an InputError naming `path` unless a file can be created there and
 /// it is an .exr (or a device such as /dev/null): checked before rendering,
@@ -110,10 +94,13 @@ void check_same_render(const RenderIdentity& a, const std::string& a_name, const
 /// when `out` is a device or pipe (-o /dev/null), which gets no preview.
 std::string write_render(const std::string& out, const FrameBuffer& fb, float exposure = 0.f);
 
-/// The layer a render's preview shows: the reconstruction of a
-/// gradient-domain render (neural if it has one, else variance-weighted, else
-/// L1), else its colour.
-std::string preview_layer(const FrameBuffer& fb);
+// The header entries both the tool and the Python module write (gdr/io/render_header.h),
+// also known by their former names here.
+using gdr::format_sample_ranges;
+using gdr::kMixedSeeds;
+using gdr::normalized_ranges;
+using gdr::preview_layer;
+using gdr::SampleRange;
 
 /// Throws a RuntimeFailure naming `file`, the layer and the pixel of the
 /// first NaN or Inf in `fb`: no output image ever holds one.

@@ -1,0 +1,120 @@
+"""gdr.load_dict: a dict with the scene file's structure renders as the same
+scene from a JSON file (same seed, same arrays), meshes from numpy arrays
+render as the same mesh from an OBJ file, and bad dicts raise exceptions
+naming the key or array."""
+import copy
+import json
+import os
+import unittest
+
+import numpy as np
+
+from gdr_test_util import SMALL, gdr, scratch_dir
+
+OUT = scratch_dir("load_dict")
+
+# A floor and an emitting quad above it, by vertex and triangle arrays.
+FLOOR_V = np.array([[-1, 0, -1], [1, 0, -1], [1, 0, 1], [-1, 0, 1]], dtype=np.float32)
+LIGHT_V = np.array([[-0.3, 1.5, -0.3], [0.3, 1.5, -0.3], [0.3, 1.5, 0.3], [-0.3, 1.5, 0.3]], dtype=np.float64)
+QUAD_T = np.array([[0, 2, 1], [0, 3, 2]], dtype=np.int32)   # floor: facing up
+LIGHT_T = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.int64)  # light: facing down
+MATERIALS = {"floor": {"type": "diffuse", "kd": [0.6, 0.5, 0.4]},
+             "light": {"type": "diffuse", "kd": [0, 0, 0], "ke": [8, 8, 8]}}
+CAMERA = {"position": [0, 1.2, 2.5], "target": [0, 0.3, 0], "up": [0, 1, 0], "fov": 50, "width": 20, "height": 16}
+
+
+def arrays_scene():
+    return {"camera": dict(CAMERA),
+            "meshes": [{"vertices": FLOOR_V, "triangles": QUAD_T, "material": "floor"},
+                       {"vertices": LIGHT_V, "triangles": LIGHT_T, "material": "light",
+                        "transform": {"translate": [0, 0.1, 0]}}],
+            "materials": copy.deepcopy(MATERIALS),
+            "render": {"integrator": "pt", "spp": 4, "seed": 3}}
+
+
+def write_obj(path, name, v, t):
+    with open(path, "w") as f:
+        f.write(f"mtllib {name}.mtl\nusemtl {name}\n")
+        f.writelines(f"v {x!r} {y!r} {z!r}\n" for x, y, z in v.tolist())
+        f.writelines(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in t.tolist())
+    with open(os.path.join(os.path.dirname(path), f"{name}.mtl"), "w") as f:
+        f.write(f"newmtl {name}\nKd 0.5 0.5 0.5\n")
+
+
+class LoadDict(unittest.TestCase):
+    def assert_same_render(self, a, b, **kw):
+        ra, rb = gdr.render(a, **kw), gdr.render(b, **kw)
+        self.assertEqual(sorted(ra), sorted(rb))
+        for name in ra:
+            np.testing.assert_array_equal(ra[name], rb[name], err_msg=name)
+
+    def test_a_dict_renders_as_the_same_scene_from_its_file(self):
+        with open(SMALL) as f:
+            d = json.load(f)
+        from_dict = gdr.load_dict(d, base_dir=os.path.dirname(SMALL))
+        self.assertEqual((from_dict.width, from_dict.height, from_dict.triangles), (24, 24, 36))
+        self.assert_same_render(from_dict, gdr.load_scene(SMALL), integrator="gpt", spp=2, seed=5)
+        # The hash follows the content: the same dict hashes the same, another value differently.
+        again = gdr.load_dict(d, base_dir=os.path.dirname(SMALL))
+        self.assertEqual(from_dict.content_hash, again.content_hash)
+        d["camera"]["fov"] = 46
+        self.assertNotEqual(gdr.load_dict(d, base_dir=os.path.dirname(SMALL)).content_hash, from_dict.content_hash)
+
+    def test_numpy_meshes_render_as_the_same_meshes_from_obj_files(self):
+        write_obj(os.path.join(OUT, "floor.obj"), "floor", FLOOR_V, QUAD_T)
+        write_obj(os.path.join(OUT, "light.obj"), "light", LIGHT_V, LIGHT_T)
+        files = {"camera": dict(CAMERA),
+                 "meshes": ["floor.obj", {"file": "light.obj", "transform": {"translate": [0, 0.1, 0]}}],
+                 "materials": copy.deepcopy(MATERIALS), "render": {"integrator": "pt", "spp": 4, "seed": 3}}
+        path = os.path.join(OUT, "quads.json")
+        with open(path, "w") as f:
+            json.dump(files, f)
+        scene = gdr.load_dict(arrays_scene())
+        self.assertEqual(scene.emitters, 2)
+        self.assert_same_render(scene, gdr.load_scene(path), integrator="gpt", spp=4, seed=3)
+        img = gdr.render(scene)["color"]
+        self.assertGreater(img.mean(), 0.01)  # the lit floor is seen
+
+    def test_non_contiguous_and_list_arrays_give_the_same_scene(self):
+        d = arrays_scene()
+        wide = np.zeros((4, 6), np.float32)
+        wide[:, ::2] = FLOOR_V
+        d["meshes"][0]["vertices"] = wide[:, ::2]  # a strided view
+        self.assertFalse(d["meshes"][0]["vertices"].flags["C_CONTIGUOUS"])
+        e = arrays_scene()
+        e["meshes"][0]["vertices"] = FLOOR_V.tolist()
+        e["meshes"][0]["triangles"] = [tuple(t) for t in QUAD_T.tolist()]
+        self.assert_same_render(gdr.load_dict(d), gdr.load_dict(arrays_scene()), spp=2)
+        self.assert_same_render(gdr.load_dict(e), gdr.load_dict(arrays_scene()), spp=2)
+
+    def test_bad_dicts_name_the_key_or_array(self):
+        def bad(change, error, pattern):
+            d = arrays_scene()
+            change(d)
+            with self.assertRaisesRegex(error, pattern):
+                gdr.load_dict(d)
+
+        bad(lambda d: d.update(lights=[]), gdr.InputError, "lights")
+        bad(lambda d: d["camera"].update(zoom=2), gdr.InputError, "zoom")
+        bad(lambda d: d["meshes"][0].update(colour=1), gdr.InputError, "colour")
+        bad(lambda d: d["meshes"][0].update(vertices=FLOOR_V.astype(np.complex64)), gdr.ParameterError,
+            r"meshes\[0\]\.vertices.*complex64")
+        bad(lambda d: d["meshes"][1].update(triangles=LIGHT_T.astype(np.float32)), gdr.ParameterError,
+            r"meshes\[1\]\.triangles.*float32.*integer")
+        bad(lambda d: d["meshes"][0].update(vertices=FLOOR_V[:, :2]), gdr.ParameterError,
+            r"meshes\[0\]\.vertices.*\(4, 2\)")
+        nan = FLOOR_V.copy()
+        nan[2, 1] = np.nan
+        bad(lambda d: d["meshes"][0].update(vertices=nan), gdr.InputError, r"meshes\.0\.vertices|meshes\[0\]\.vertices")
+        bad(lambda d: d["camera"].update(fov=float("inf")), gdr.InputError, "camera.fov")
+        bad(lambda d: d["meshes"][0].update(triangles=np.array([[0, 1, 9]])), gdr.InputError,
+            r"meshes\[0\]\.triangles\[0\].*9.*\[0, 3\]")
+        bad(lambda d: d["meshes"][0].update(material="steel"), gdr.InputError, "steel")
+        bad(lambda d: d["materials"]["floor"].update(kd=[2, 0, 0]), gdr.InputError, "floor")
+        bad(lambda d: d["camera"].update(width=object()), TypeError, "camera.width")
+        with self.assertRaisesRegex(TypeError, "expected a dict"):
+            gdr.load_dict([1, 2])
+
+
+if __name__ == "__main__":
+    unittest.main()
