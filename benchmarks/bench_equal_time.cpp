@@ -520,7 +520,7 @@ int main(int argc, char** argv) try {
     if (o.neural) {
         // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise.
         setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
-        const cli::PluginLoad& plugin = cli::load_reconstructor_plugins();
+        const cli::PluginLoad& plugin = cli::load_plugins();
         if (reconstructor_registry().has("neural")) {
             // A neural row: its reconstructor from `defaults` then the `sets` texts.
             const auto add_row = [&](const std::string& row, const std::string& label, Rgb8 colour, Params p,
@@ -543,9 +543,9 @@ int main(int argc, char** argv) try {
             neural_primal = add_row("pt-neural-primal", "primal-only samples + primal-only U-Net", {140, 140, 220}, pp,
                                     o.neural_primal_sets);
         } else {
-            std::printf("G-PT + neural left out: %s\n",
-                        plugin.path.empty() ? "its plugin is not built (it needs libtorch)"
-                                            : (plugin.path + ": " + plugin.error).c_str());
+            std::string why = "its plugin is not built (it needs libtorch)";
+            for (const auto& [file, reason] : plugin.skipped) why = file + ": " + reason;
+            std::printf("G-PT + neural left out: %s\n", why.c_str());
         }
     }
     const int kNumMethods = int(methods.size());

@@ -193,7 +193,7 @@ int main(int argc, char** argv) {
     Timing t_neural;
     if (with_neural) {
         setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
-        const cli::PluginLoad& plugin = cli::load_reconstructor_plugins();
+        const cli::PluginLoad& plugin = cli::load_plugins();
         if (reconstructor_registry().has("neural")) {
             const auto net = reconstructor_registry().create("neural", Params("bench_reconstruct"));
             FrameBuffer fb(W, H);
@@ -209,8 +209,8 @@ int main(int argc, char** argv) {
             for (char& c : params) c = c == '\n' ? ' ' : c;
             neural_note = "measured: " + params;
         } else {
-            neural_note = plugin.path.empty() ? "not measured: its plugin is not built (it needs libtorch)"
-                                              : "not measured: " + plugin.path + ": " + plugin.error;
+            neural_note = "not measured: its plugin is not built (it needs libtorch)";
+            for (const auto& [file, reason] : plugin.skipped) neural_note = "not measured: " + file + ": " + reason;
         }
     }
 

@@ -3,6 +3,7 @@
 #include <fmt/core.h>
 
 #include "gdr/cli/commands.h"
+#include "gdr/cli/plugins.h"
 #include "render_options.h"
 #include "say.h"
 #include "gdr/core/error.h"
@@ -17,6 +18,7 @@ int check_shift(const std::vector<std::string>& args) {
     ValidateOptions opt;
     ShiftConfig cfg;
     SceneFileOptions scene_options;
+    Params shift_params("gdr check-shift --set");
     while (a.more()) {
         const std::string o = a.next();
         if (o == "-h" || o == "--help") return print_usage("check-shift");
@@ -37,6 +39,7 @@ int check_shift(const std::vector<std::string>& args) {
             if (cfg.threshold < 0.f) throw ParameterError("option --threshold must be >= 0");
         }
         else if (o == "--probabilistic") cfg.probabilistic = true;
+        else if (o == "--set") shift_params.set_from_text(a.value(o));
         else if (o == "-D") add_define(scene_options, a.value(o));
         else if (o == "--lenient") scene_options.lenient = true;
         else if (!o.empty() && o[0] == '-') throw ParameterError("check-shift: unknown option '" + o + "'\n" + usage("check-shift"));
@@ -46,7 +49,8 @@ int check_shift(const std::vector<std::string>& args) {
     if (scene_path.empty()) throw ParameterError("check-shift: no scene file given\n" + usage("check-shift"));
     const SceneFile sf = load_scene_file(scene_path, scene_options);
     for (const std::string& w : sf.warnings) say("warning: {}\n", w);
-    const auto shift = shift_registry().create(shift_name, Params("--shift"));
+    require_shift(shift_name, "gdr check-shift --shift " + shift_name);
+    const auto shift = shift_registry().create(shift_name, shift_params);
     const ShiftReport rep = integrator == "gbdpt" ? validate_bidirectional_shift(*sf.scene, *shift, cfg, opt)
                                                   : validate_shift(*sf.scene, *shift, cfg, opt);
     fmt::print("{}: {}", scene_path, rep.summary());

@@ -75,7 +75,10 @@ const CommandHelp kCommands[] = {
      "  --seed S              sampler seed; parts with different seeds merge (gdr merge)\n"
      "  --width W, --height H resolution; one of them alone keeps the camera's aspect ratio\n"
      "  --resolution WxH      both at once\n"
-     "  --set key=value       an integrator parameter (gdr list shows them), or the scene's fov (degrees)\n"
+     "  --set key=value       an integrator parameter (gdr list shows them), or the scene's fov (degrees);\n"
+     "                        gpt, gbdpt, tgpt: reconstruct=NAME[,NAME...] (each writes reconstruction_NAME),\n"
+     "                        reconstruct.KEY=V (reconstruct.NAME.KEY=V of a list), shift.KEY=V; a name not\n"
+     "                        registered loads the plugins (GDR_PLUGIN_PATH, else <libdir>/gdr)\n"
      "  --resume FILE.exr     continue FILE's sample sequence towards its target (or a new --spp/--time\n"
      "                        total), with its integrator and parameters; refused for another scene,\n"
      "                        integrator, parameter or resolution\n"
@@ -159,7 +162,8 @@ const CommandHelp kCommands[] = {
      "                  takes its options, e.g. norm=l2, window=10, step=5, w_t=1)\n"
      "  --method NAME   poisson-l1 (default), poisson-l2, neural (where built: a plugin, loaded when asked\n"
      "                  for; --set weights=W.pt, default the shipped model), or any registered\n"
-     "                  reconstructor (gdr list)\n"
+     "                  reconstructor or a plugin's (gdr list; plugins are looked for in GDR_PLUGIN_PATH,\n"
+     "                  else <libdir>/gdr); --set key=value gives its parameters\n"
      "  --alpha A       weight of the primal in the screened Poisson energy (default 0.2)\n"
      "OUT is locked while it runs (OUT.exr.lock, as for gdr render; with --frames one lock named after\n"
      "the pattern). Ctrl-C or SIGTERM lets the file being written finish (with --frames: the frame being\n"
@@ -200,10 +204,12 @@ const CommandHelp kCommands[] = {
      "  --crf N           H.264 quality, 0 (lossless) to 51 (default 18)\n"
      "  --exposure STOPS  exposure, as gdr render --exposure gives the PNG previews"},
     {"check-shift",
-     "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--integrator gpt|gbdpt] [--paths N] [--seed S]\n"
-     "                [--max-depth D] [--threshold T] [--probabilistic] [-D name=value]... [--lenient]",
+     "gdr check-shift SCENE.json|SCENE.xml [--shift NAME] [--set key=value]... [--integrator gpt|gbdpt]\n"
+     "                [--paths N] [--seed S] [--max-depth D] [--threshold T] [--probabilistic] [-D name=value]...\n"
+     "                [--lenient]",
      "Samples base paths, shifts each to its right-hand neighbour, and checks the failure rate,\n"
      "reversibility and each step's analytic against a finite-difference Jacobian. Ends with PASS or FAIL.\n"
+     "  --shift NAME    a registered shift mapping, or a plugin's (gdr list); --set key=value its parameters\n"
      "  --integrator gbdpt  base paths that join a camera and a light subpath, shifted as gbdpt does\n"
      "  -D name=value   a Mitsuba XML scene's $parameter (overrides its <default>)\n"
      "  --lenient       a Mitsuba XML scene's unsupported elements become warnings and are skipped"},

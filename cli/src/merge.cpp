@@ -23,7 +23,8 @@ namespace {
 // The integrator that made a render, rebuilt from its stored name and parameters.
 std::unique_ptr<Integrator> integrator_of(const StoredRender& p) {
     const Params params = stored_params(p);
-    require_reconstructors_of(params, "gdr merge " + p.file);
+    require_integrator(p.fb.metadata().at("integrator"), "gdr merge " + p.file);
+    require_plugins_of(params, "gdr merge " + p.file);
     return integrator_registry().create(p.fb.metadata().at("integrator"), params);
 }
 

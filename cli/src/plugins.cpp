@@ -3,12 +3,15 @@
 
 #include <dlfcn.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <mutex>
 
 #include "gdr/core/error.h"
+#include "gdr/integrators/gpt.h"
 
 namespace gdr::cli {
 
@@ -16,46 +19,60 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Loads plugin `file` into `regs`; "" if it registered, else why not.
+std::string load_one(const std::string& file, PluginRegistries& regs) {
+    // RTLD_LOCAL: the plugin's own copy of libgdr must not take the place
+    // of the tool's symbols, nor theirs its own.
+    void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+        const char* e = dlerror();
+        return e ? e : "dlopen failed";
+    }
+    const auto abi = reinterpret_cast<decltype(&gdr_plugin_abi)>(dlsym(handle, "gdr_plugin_abi"));
+    const auto add = reinterpret_cast<decltype(&gdr_plugin_register)>(dlsym(handle, "gdr_plugin_register"));
+    if (!abi || !add) {
+        dlclose(handle);
+        return "it exports no gdr_plugin_abi / gdr_plugin_register: not a gdr plugin";
+    }
+    if (std::strcmp(abi(), GDR_PLUGIN_ABI) != 0) {
+        const std::string why = std::string("it was built for ") + abi() + ", this gdr is " + GDR_PLUGIN_ABI +
+                                " (build and install the two together)";
+        dlclose(handle);
+        return why;
+    }
+    try {
+        add(&regs);
+    } catch (const std::exception& e) {
+        // What it registered before failing stays: the library stays loaded.
+        return std::string("its registration failed: ") + e.what();
+    }
+    return "";
+}
+
 PluginLoad load_once() {
     PluginLoad r;
     r.searched = plugin_search_dirs();
-    for (const std::string& dir : r.searched) {
-        const fs::path file = fs::path(dir) / kNeuralPluginFile;
+    // libtorch's OpenMP threads spin after each parallel region by
+    // default, taking CPU from the tool's own threads (the EXR write after
+    // the inference): gdr reconstruct --method neural of a 1280x720 render
+    // took 4.5-4.9 s of user CPU (6.2-6.9 s wall) without it and 3.5-3.8 s
+    // (5.2-5.8 s wall) with PASSIVE. OpenMP reads the variable when it is
+    // loaded, with the neural plugin; a value the user set is kept.
+    setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
+    PluginRegistries regs{&integrator_registry(), &reconstructor_registry(), &shift_registry()};
+    // A later registration of a name replaces an earlier one, so the
+    // directories are loaded last to first: the earlier directory wins.
+    for (auto dir = r.searched.rbegin(); dir != r.searched.rend(); ++dir) {
         std::error_code ec;
-        if (!fs::is_regular_file(file, ec)) continue;
-        r.path = file.string();
-        // libtorch's OpenMP threads spin after each parallel region by
-        // default, taking CPU from the tool's own threads (the EXR write after
-        // the inference): gdr reconstruct --method neural of a 1280x720 render
-        // took 4.5-4.9 s of user CPU (6.2-6.9 s wall) without it and 3.5-3.8 s
-        // (5.2-5.8 s wall) with PASSIVE. OpenMP reads the variable when it is
-        // loaded, with the plugin; a value the user set is kept.
-        setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
-        // RTLD_LOCAL: the plugin's own copy of libgdr must not take the place
-        // of the tool's symbols, nor theirs its own.
-        void* handle = dlopen(r.path.c_str(), RTLD_NOW | RTLD_LOCAL);
-        if (!handle) {
-            const char* e = dlerror();
-            r.error = e ? e : "dlopen failed";
-            return r;
+        std::vector<std::string> files;
+        for (fs::directory_iterator it(*dir, ec), end; !ec && it != end; it.increment(ec))
+            if (it->path().extension() == ".so" && fs::is_regular_file(it->path(), ec)) files.push_back(it->path().string());
+        std::sort(files.begin(), files.end());
+        for (const std::string& file : files) {
+            const std::string why = load_one(file, regs);
+            if (why.empty()) r.loaded.push_back(file);
+            else r.skipped.emplace_back(file, why);
         }
-        const auto abi = reinterpret_cast<decltype(&gdr_plugin_abi)>(dlsym(handle, "gdr_plugin_abi"));
-        const auto add =
-            reinterpret_cast<decltype(&gdr_plugin_register_reconstructors)>(dlsym(handle, "gdr_plugin_register_reconstructors"));
-        if (!abi || !add) {
-            r.error = "it exports no gdr_plugin_abi / gdr_plugin_register_reconstructors: not a gdr plugin";
-            dlclose(handle);
-            return r;
-        }
-        if (std::strcmp(abi(), GDR_PLUGIN_ABI) != 0) {
-            r.error = std::string("it was built for ") + abi() + ", this gdr is " + GDR_PLUGIN_ABI +
-                      " (build and install the two together)";
-            dlclose(handle);
-            return r;
-        }
-        add(&reconstructor_registry());
-        r.loaded = true;
-        return r;
     }
     return r;
 }
@@ -64,6 +81,23 @@ std::string joined(const std::vector<std::string>& v) {
     std::string s;
     for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
     return s;
+}
+
+// The plugin files that were not used, with why, for a name that stayed unknown.
+std::string skipped_note(const PluginLoad& p) {
+    std::string s;
+    for (const auto& [file, why] : p.skipped) s += "; skipped plugin " + file + ": " + why;
+    if (p.searched.empty()) s += "; no plugin directory was searched (GDR_PLUGIN_PATH is set but empty)";
+    return s;
+}
+
+template <typename Base>
+void require(const Registry<Base>& registry, const char* kind, const std::string& name, const std::string& context) {
+    if (registry.has(name)) return;
+    const PluginLoad& p = load_plugins();
+    if (registry.has(name)) return;
+    throw ParameterError(context + ": unknown " + kind + " '" + name + "' (available: " + joined(registry.names()) +
+                         ")" + skipped_note(p));
 }
 
 }  // namespace
@@ -85,7 +119,7 @@ std::vector<std::string> plugin_search_dirs() {
     return dirs;
 }
 
-const PluginLoad& load_reconstructor_plugins() {
+const PluginLoad& load_plugins() {
     static std::once_flag once;
     static PluginLoad result;
     std::call_once(once, [] { result = load_once(); });
@@ -93,12 +127,14 @@ const PluginLoad& load_reconstructor_plugins() {
 }
 
 void require_reconstructor(const std::string& method, const std::string& context) {
+    if (method != "neural") return require(reconstructor_registry(), "reconstructor", method, context);
     if (reconstructor_registry().has(method)) return;
-    const PluginLoad& p = load_reconstructor_plugins();
-    if (reconstructor_registry().has(method) || method != "neural") return;
-    if (!p.path.empty())
-        throw ParameterError(context + ": the neural reconstructor's plugin " + p.path + " could not be loaded: " +
-                             (p.error.empty() ? "it registers no 'neural'" : p.error));
+    const PluginLoad& p = load_plugins();
+    if (reconstructor_registry().has(method)) return;
+    // The one plugin gdr builds itself: say how to build it, or why it could not be used.
+    for (const auto& [file, why] : p.skipped)
+        if (fs::path(file).filename() == kNeuralPluginFile)
+            throw ParameterError(context + ": the neural reconstructor's plugin " + file + " could not be loaded: " + why);
     const std::string where = p.searched.empty() ? "GDR_PLUGIN_PATH is set but empty, so no directory was searched"
                                                  : std::string("no ") + kNeuralPluginFile + " in " + joined(p.searched);
     throw ParameterError(context + ": the neural reconstructor was not built (" + where +
@@ -107,11 +143,34 @@ void require_reconstructor(const std::string& method, const std::string& context
                          "reconstructor: built'. GDR_PLUGIN_PATH=DIR[:DIR...] sets where the plugin is looked for");
 }
 
-void require_reconstructors_of(const Params& integrator_params, const std::string& context) {
-    const auto it = integrator_params.values().find("reconstruct");
-    if (it == integrator_params.values().end()) return;
-    const std::string choice = to_string(it->second);
-    if (choice == "neural") require_reconstructor("neural", context + " (reconstruct=neural)");
+void require_shift(const std::string& name, const std::string& context) {
+    require(shift_registry(), "shift mapping", name, context);
+}
+
+void require_integrator(const std::string& name, const std::string& context) {
+    require(integrator_registry(), "integrator", name, context);
+}
+
+void require_plugins_of(const Params& integrator_params, const std::string& context) {
+    const auto& values = integrator_params.values();
+    if (const auto it = values.find("reconstruct"); it != values.end()) {
+        const std::string choice = to_string(it->second);
+        for (const std::string& m : GradientReconstructions::methods_of(choice, context))
+            require_reconstructor(m, context + " (reconstruct=" + choice + ")");
+    }
+    if (const auto it = values.find("shift"); it != values.end()) {
+        const std::string shift = to_string(it->second);
+        if (shift != "combined") {
+            require_shift(shift, context + " (shift=" + shift + ")");
+        } else if (const auto two = values.find("shifts"); two != values.end()) {
+            const std::string list = to_string(two->second);
+            for (size_t pos = 0; pos < list.size();) {
+                const size_t comma = std::min(list.find(',', pos), list.size());
+                if (comma > pos) require_shift(list.substr(pos, comma - pos), context + " (shifts=" + list + ")");
+                pos = comma + 1;
+            }
+        }
+    }
 }
 
 }  // namespace gdr::cli

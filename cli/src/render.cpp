@@ -267,7 +267,8 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         for (const auto& [k, v] : stored.values()) params.set(k, v);
     }
     for (const auto& s : sets) params.set_from_text(s);
-    require_reconstructors_of(params, "gdr render");
+    require_integrator(name, "gdr render --integrator " + name);
+    require_plugins_of(params, "gdr render");
     auto integrator = integrator_registry().create(name, params);
 
     const auto& cam = sf.scene->camera();
@@ -607,6 +608,9 @@ int info(const std::vector<std::string>& args) {
 }
 
 int list_plugins() {
+    // The plugins' names too: loading them costs libtorch's start-up time
+    // (the neural plugin), which a listing may spend.
+    const PluginLoad& plugins = load_plugins();
     // Each integrator's parameters with their defaults, as its describe() states them.
     const auto defaults = [](const std::string& name) {
         try {
@@ -625,20 +629,23 @@ int list_plugins() {
         if (!d.empty()) fmt::print("  {:<18} defaults: {}\n", "", d);
     }
     fmt::print("scene settings (gdr render --set key=value): fov (degrees, along the camera's fov axis)\n");
-    fmt::print("shift mappings (gpt shift=NAME):\n");
+    fmt::print("shift mappings (gpt, gbdpt shift=NAME; their parameters shift.KEY=VALUE):\n");
     for (const auto& n : shift_registry().names()) fmt::print("  {:<18} {}\n", n, shift_registry().description(n));
-    // The plugins' reconstructors too: loading them costs libtorch's start-up
-    // time, which a listing may spend.
-    const PluginLoad& plugins = load_reconstructor_plugins();
-    fmt::print("reconstructors (gdr reconstruct --method NAME):\n");
+    fmt::print("reconstructors (gdr reconstruct --method NAME; gpt, gbdpt, tgpt reconstruct=NAME[,NAME...], their "
+               "parameters reconstruct.KEY=VALUE):\n");
     for (const auto& n : reconstructor_registry().names())
         fmt::print("  {:<18} {}\n", n, reconstructor_registry().description(n));
-    if (!reconstructor_registry().has("neural"))
-        fmt::print("  {:<18} {}\n", "neural",
-                   plugins.path.empty() ? "not built, or not found (no " + std::string(kNeuralPluginFile) +
-                                              " where gdr looks: GDR_PLUGIN_PATH); it needs libtorch, which "
-                                              "scripts/install-deps.sh installs (libtorch-dev)"
-                                        : "its plugin " + plugins.path + " could not be loaded: " + plugins.error);
+    if (!reconstructor_registry().has("neural")) {
+        std::string why = "not built, or not found (no " + std::string(kNeuralPluginFile) +
+                          " where gdr looks: GDR_PLUGIN_PATH); it needs libtorch, which scripts/install-deps.sh "
+                          "installs (libtorch-dev)";
+        for (const auto& [file, reason] : plugins.skipped)
+            if (std::filesystem::path(file).filename() == kNeuralPluginFile)
+                why = "its plugin " + file + " could not be loaded: " + reason;
+        fmt::print("  {:<18} {}\n", "neural", why);
+    }
+    for (const std::string& file : plugins.loaded) fmt::print("plugin loaded: {}\n", file);
+    for (const auto& [file, reason] : plugins.skipped) fmt::print("plugin skipped: {}: {}\n", file, reason);
     return 0;
 }
 

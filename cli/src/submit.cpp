@@ -804,7 +804,8 @@ int submit(const std::vector<std::string>& args) {
     Params params(integrator_sets.empty() ? sf.defaults.params.context() : "--set");
     for (const auto& [k, v] : sf.defaults.params.values()) params.set(k, v);
     for (const std::string& s : integrator_sets) params.set_from_text(s);
-    require_reconstructors_of(params, "gdr submit");
+    require_integrator(name, "gdr submit --integrator " + name);
+    require_plugins_of(params, "gdr submit");
     (void)integrator_registry().create(name, params);
 
     SubmitPlan plan;

@@ -1,4 +1,4 @@
-// The neural reconstructor as a plugin of the gdr tool (gdr/cli/plugins.h).
+// The neural reconstructor as a plugin of the gdr tool (gdr/plugin.h).
 // The tool loads this library, and libtorch with it, only when a run asks for
 // the method, so its other runs start without libtorch's load time.
 //
@@ -12,7 +12,7 @@
 #include <filesystem>
 #include <string>
 
-#include "gdr/cli/plugins.h"
+#include "gdr/plugin.h"
 #include "gdr/neural/neural_reconstructor.h"
 
 namespace {
@@ -27,16 +27,15 @@ std::string shipped_model_path() {
     return (lib.parent_path() / GDR_DATA_DIR_FROM_PLUGIN / "neural" / GDR_SHIPPED_MODEL).lexically_normal().string();
 }
 
-}  // namespace
-
-extern "C" __attribute__((visibility("default"))) const char* gdr_plugin_abi() { return GDR_PLUGIN_ABI; }
-
-extern "C" __attribute__((visibility("default"))) void gdr_plugin_register_reconstructors(
-    gdr::Registry<gdr::Reconstructor>* registry) {
+void add_neural(gdr::PluginRegistries& registries) {
     const std::string model = shipped_model_path();
     std::error_code ec;
     const bool found = !model.empty() && fs::is_regular_file(model, ec);
     gdr::neural::register_neural_reconstructor(
-        *registry, found ? model : "",
+        *registries.reconstructors, found ? model : "",
         found ? "" : "the shipped model " + std::string(GDR_SHIPPED_MODEL) + " is not at " + (model.empty() ? "(the plugin's directory is unknown)" : model));
 }
+
+}  // namespace
+
+GDR_EXPORT_PLUGIN(add_neural)

@@ -2,6 +2,7 @@
 
 #include "gdr/neural/neural_reconstructor.h"
 
+#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -19,6 +20,9 @@ public:
         if (weights_.empty())
             throw ParameterError(p.context() + ": the neural reconstructor needs weights=PATH (a file written by gdr_train)" +
                                  (missing_default.empty() ? "" : "; " + missing_default));
+        // Absolute, as describe() reports it: a render stores it, and its
+        // resume or merge may run from another directory.
+        weights_ = std::filesystem::absolute(weights_).lexically_normal().string();
         const long long threads = p.get_int("threads", 0);
         if (threads < 0 || threads > 1024)
             throw ParameterError(p.context() + ": parameter 'threads' must be in 0..1024, got " + std::to_string(threads));

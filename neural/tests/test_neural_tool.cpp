@@ -172,19 +172,19 @@ TEST_CASE("gdr reconstruct --method neural and gdr render reconstruct=neural run
     // The same seed and samples as gpt.exr, so the same reconstruction.
     CHECK(std::sqrt(mse_of(rfb.get("reconstruction_neural"), img)) / mean_of(img) <= kThreadRelRms);
 
-    // Other weights in a render: neural_weights (here unet-v1) gives that
+    // Other weights in a render: reconstruct.weights (here unet-v1) gives that
     // model's reconstruction, far from the shipped one's, and is kept, as an
     // absolute path, in the file's integrator parameters.
     const std::string v1 = GDR_SOURCE_DIR "/neural/models/unet-v1.pt";
     const std::string rv1 = dir("render-v1.exr");
     r = test::run_tool(GDR_TOOL,
                        {"render", scene, "--integrator", "gpt", "--spp", "8", "--seed", "3", "--resolution", "48x40",
-                        "--set", "reconstruct=neural", "--set", "neural_weights=" + v1, "-o", rv1},
+                        "--set", "reconstruct=neural", "--set", "reconstruct.weights=" + v1, "-o", rv1},
                        dir("render3.log"));
     INFO(r.output);
     REQUIRE(r.status == 0);
     const FrameBuffer v1fb = read_exr(rv1);
-    CHECK_THAT(v1fb.metadata().at("integrator_params"), Contains("neural_weights=" + v1));
+    CHECK_THAT(v1fb.metadata().at("integrator_params"), Contains("reconstruct.weights=" + v1));
     {
         Registry<Reconstructor> reg("reconstructor");
         neural::register_neural_reconstructor(reg);
@@ -195,16 +195,20 @@ TEST_CASE("gdr reconstruct --method neural and gdr render reconstruct=neural run
         CHECK(std::sqrt(mse_of(v1fb.get("reconstruction_neural"), want)) / mean_of(want) <= kThreadRelRms);
         CHECK(std::sqrt(mse_of(v1fb.get("reconstruction_neural"), img)) / mean_of(img) > 100 * kThreadRelRms);
     }
-    // A missing file, or neural_weights without reconstruct=neural, stops the render before it starts.
-    for (const std::vector<std::string>& sets : {std::vector<std::string>{"reconstruct=neural", "neural_weights=" + dir("nope.pt")},
-                                                 std::vector<std::string>{"neural_weights=" + v1}}) {
+    // A missing file, reconstruct.weights without reconstruct=neural, or the
+    // old key neural_weights stops the render before it starts, naming the key.
+    const std::vector<std::pair<std::vector<std::string>, std::string>> refused{
+        {{"reconstruct=neural", "reconstruct.weights=" + dir("nope.pt")}, dir("nope.pt")},
+        {{"reconstruct.weights=" + v1}, "'reconstruct.weights'"},
+        {{"reconstruct=neural", "neural_weights=" + v1}, "reconstruct.weights"}};
+    for (const auto& [sets, named] : refused) {
         std::vector<std::string> args{"render", scene, "--integrator", "gpt", "--spp", "8", "--resolution", "48x40"};
         for (const std::string& kv : sets) args.push_back("--set"), args.push_back(kv);
         args.push_back("-o"), args.push_back(dir("refused.exr"));
         r = test::run_tool(GDR_TOOL, args, dir("refused.log"));
         INFO(r.output);
         CHECK(r.status != 0);
-        CHECK_THAT(r.output, Contains("neural_weights="));
+        CHECK_THAT(r.output, Contains(named));
         CHECK_FALSE(fs::exists(dir("refused.exr")));
     }
 

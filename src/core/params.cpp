@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <algorithm>
 #include <sstream>
 
 namespace gdr {
@@ -34,7 +35,7 @@ void Params::set_from_text(const std::string& a) {
 }
 
 void Params::bad_type(const std::string& key, const char* expected) const {
-    throw ParameterError(context_ + ": parameter '" + key + "' must be " + expected + ", got '" +
+    throw ParameterError(context_ + ": parameter '" + key_prefix_ + key + "' must be " + expected + ", got '" +
                          to_string(values_.at(key)) + "'");
 }
 
@@ -80,19 +81,59 @@ std::string Params::get_choice(const std::string& key, const std::string& def,
         if (c == v) return v;
     std::string list;
     for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
-    throw ParameterError(context_ + ": parameter '" + key + "' is '" + v + "', expected one of: " + list);
+    throw ParameterError(context_ + ": parameter '" + key_prefix_ + key + "' is '" + v + "', expected one of: " + list);
 }
 
 void Params::check_unused(const std::string& owner) const {
     for (const auto& [k, v] : values_)
         if (!used_.count(k))
-            throw ParameterError(context_ + ": unknown parameter '" + k + "' for " + owner);
+            throw ParameterError(context_ + ": unknown parameter '" + key_prefix_ + k + "' for " + owner);
+}
+
+Params Params::prefixed(const std::string& prefix) const {
+    Params sub(context_);
+    sub.key_prefix_ = key_prefix_ + prefix + ".";
+    const std::string head = prefix + ".";
+    for (const auto& [k, v] : values_)
+        if (k.size() > head.size() && k.compare(0, head.size(), head) == 0) {
+            sub.values_[k.substr(head.size())] = v;
+            used_.insert(k);
+        }
+    return sub;
 }
 
 std::string Params::to_text() const {
     std::string s;
     for (const auto& [k, v] : values_) s += k + "=" + to_string(v) + "\n";
     return s;
+}
+
+std::vector<Params> Params::parts(const std::string& prefix, const std::vector<std::string>& names) const {
+    const Params all = prefixed(prefix);
+    std::string untargeted, targeted;
+    for (const auto& [key, value] : all.values()) {
+        const size_t dot = key.find('.');
+        const bool to_one = dot != std::string::npos && dot + 1 < key.size() &&
+                            std::find(names.begin(), names.end(), key.substr(0, dot)) != names.end();
+        (to_one ? targeted : untargeted) = key;
+    }
+    const std::string full = key_prefix_ + prefix + ".";
+    if (!untargeted.empty() && names.size() != 1) {
+        std::string list;
+        for (const auto& n : names) list += (list.empty() ? "" : ", ") + n;
+        throw ParameterError(context_ + ": parameter '" + full + untargeted + "': " +
+                             (names.empty() ? "'" + key_prefix_ + prefix + "' chooses none to take it"
+                                            : "'" + key_prefix_ + prefix + "' chooses several (" + list + "); give " +
+                                                  full + "<name>." + untargeted + " for one of them"));
+    }
+    if (!untargeted.empty() && !targeted.empty())
+        throw ParameterError(context_ + ": parameters '" + full + untargeted + "' and '" + full + targeted +
+                             "': give the parameters of the one '" + key_prefix_ + prefix + "' in one form, " + full +
+                             "<key> or " + full + "<name>.<key>");
+    std::vector<Params> out;
+    // Either form keeps the key as given in messages.
+    for (const std::string& name : names) out.push_back(untargeted.empty() ? all.prefixed(name) : all);
+    return out;
 }
 
 }  // namespace gdr

@@ -277,11 +277,12 @@ GradientSelection select_gradient_pixels(const SelectionPilots& pl, const Gradie
         if (fb->width() != W || fb->height() != H)
             throw ParameterError(fmt::format("gradient selection: the pilots are {}x{} and {}x{}", W, H, fb->width(),
                                              fb->height()));
-    // Each gradient pilot's reconstruction: its own layer where it has the method's.
+    // Each gradient pilot's reconstruction: its own layer where it has the
+    // method's (made with the render's reconstruct.* parameters).
     Image rec[2];
     for (int i = 0; i < 2; ++i) {
         const FrameBuffer& fb = *pl.gradient[i];
-        if (o.method == "poisson-weighted" && fb.has("reconstruction_weighted")) rec[i] = fb.get("reconstruction_weighted");
+        if (fb.has(reconstruction_layer(o.method))) rec[i] = fb.get(reconstruction_layer(o.method));
         else rec[i] = reconstruct(o.method, Params("gradient selection"), gradient_buffers(fb));
     }
     const Image& pa = pilot_layer(*pl.primal[0], "color", "the primal-only pilot's colour");

@@ -122,7 +122,7 @@ class GradientBdpt final : public TiledIntegrator {
 public:
     explicit GradientBdpt(const Params& p) {
         shift_name_ = p.get_string("shift", "half-vector");
-        shift_ = shift_registry().create(shift_name_, Params("shift"));
+        shift_ = std::move(make_shifts(p, {shift_name_}, shift_params_)[0]);
         config_.threshold = float(p.get_real("threshold", 0.001));
         if (!(config_.threshold >= 0.f)) throw ParameterError("gbdpt: threshold must be >= 0");
         drop_ = float(p.get_real("drop", config_.threshold));
@@ -147,7 +147,8 @@ public:
     std::string describe() const override {
         return "shift=" + shift_name_ + "\nthreshold=" + fmt::format("{}", config_.threshold) +
                "\ndrop=" + fmt::format("{}", drop_) + "\nmax_depth=" + std::to_string(max_depth_) +
-               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\n" + recon_.describe();
+               "\nrr_depth=" + std::to_string(rr_depth_) + "\nstrategy=" + strategy_ + "\n" + shift_params_ +
+               recon_.describe();
     }
 
 protected:
@@ -552,6 +553,7 @@ private:
     Connection only_;
     int batch_ = 16;
     GradientReconstructions recon_;
+    std::string shift_params_;  // the shift.* parameters as "key=value" lines
 };
 
 }  // namespace

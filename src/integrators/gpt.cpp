@@ -2,7 +2,7 @@
 // neighbours; the MIS-weighted differences give the gradients dx, dy and the
 // weighted base and offset contributions give the primal image.
 #include <algorithm>
-#include <filesystem>
+#include <map>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -223,44 +223,103 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
 
 
 
+namespace {
+
+// The built-in solves' short names, kept as reconstruct= values and layer names.
+constexpr std::pair<const char*, const char*> kShortNames[] = {
+    {"weighted", "poisson-weighted"}, {"l1", "poisson-l1"}, {"l2", "poisson-l2"}};
+
+// "key=value" lines as a map (a value keeps any '=' after the first).
+std::map<std::string, std::string> key_values(const std::string& lines) {
+    std::map<std::string, std::string> m;
+    size_t pos = 0;
+    while (pos < lines.size()) {
+        size_t nl = lines.find('\n', pos);
+        if (nl == std::string::npos) nl = lines.size();
+        const std::string line = lines.substr(pos, nl - pos);
+        if (const size_t eq = line.find('='); eq != std::string::npos && eq > 0)
+            m[line.substr(0, eq)] = line.substr(eq + 1);
+        pos = nl + 1;
+    }
+    return m;
+}
+
+}  // namespace
+
+std::string reconstruction_layer(const std::string& method) {
+    for (const auto& [short_name, name] : kShortNames)
+        if (method == name) return std::string("reconstruction_") + short_name;
+    return "reconstruction_" + method;
+}
+
+std::vector<std::string> GradientReconstructions::methods_of(const std::string& choice, const std::string& who) {
+    if (choice == "none") return {};
+    if (choice == "all") return {"poisson-weighted", "poisson-l1", "poisson-l2"};
+    if (choice == "l1+l2") return {"poisson-l1", "poisson-l2"};
+    std::vector<std::string> names;
+    for (size_t pos = 0; pos <= choice.size();) {
+        const size_t comma = std::min(choice.find(',', pos), choice.size());
+        std::string name = choice.substr(pos, comma - pos);
+        pos = comma + 1;
+        if (name.empty())
+            throw ParameterError(who + ": reconstruct='" + choice + "' has an empty entry; give registered "
+                                       "reconstructor names separated by commas, or none");
+        for (const auto& [short_name, full] : kShortNames)
+            if (name == short_name) name = full;
+        if (std::find(names.begin(), names.end(), name) != names.end())
+            throw ParameterError(who + ": reconstruct='" + choice + "' names '" + name + "' twice");
+        names.push_back(name);
+    }
+    return names;
+}
+
 GradientReconstructions GradientReconstructions::from(const Params& p, const std::string& who) {
     GradientReconstructions r;
     // The variance-weighted solve is the final image (the benchmark's
     // best, docs/performance.md); L1 and L2 stay, the anchors' methods.
-    r.choice = p.get_choice("reconstruct", "all", {"all", "weighted", "l1+l2", "l1", "l2", "neural", "none"});
+    r.choice = p.get_string("reconstruct", "all");
     r.alpha = p.get_real("alpha", 0.2);
     if (!(r.alpha > 0.0)) throw ParameterError(who + ": alpha must be positive");
-    // The neural reconstructor is not part of libgdr (it needs libtorch):
-    // checked now, so that a render does not run to its end to fail there.
-    if (r.choice == "neural" && !reconstructor_registry().has("neural"))
-        throw ParameterError(who + ": reconstruct=neural needs the reconstructor 'neural', which is not registered (it "
-                                   "is in the optional library gdr_neural, gdr::neural::register_neural_reconstructor; "
-                                   "the gdr tool loads it as a plugin)");
-    r.neural_weights = p.get_string("neural_weights", "");
-    if (!r.neural_weights.empty()) {
-        if (r.choice != "neural")
-            throw ParameterError(who + ": neural_weights=" + r.neural_weights + " applies to reconstruct=neural only (this "
-                                       "render has reconstruct=" + r.choice + ")");
-        // Checked before the render, not after it.
-        std::error_code ec;
-        if (!std::filesystem::is_regular_file(r.neural_weights, ec))
-            throw ParameterError(who + ": neural_weights=" + r.neural_weights + ": no such file");
-        r.neural_weights = std::filesystem::absolute(r.neural_weights).lexically_normal().string();
+    if (p.has("neural_weights"))
+        throw ParameterError(p.context() + ": " + who + "'s parameter 'neural_weights' is now reconstruct.weights "
+                                                        "(reconstruct=neural reconstruct.weights=FILE)");
+    const std::vector<std::string> names = methods_of(r.choice, who);
+    const Registry<Reconstructor>& registry = reconstructor_registry();
+    for (const std::string& name : names)
+        if (!registry.has(name)) {
+            std::string list;
+            for (const auto& n : registry.names()) list += (list.empty() ? "" : ", ") + n;
+            // Checked now, so that a render does not run to its end to fail there.
+            throw ParameterError(who + ": reconstruct=" + r.choice + ": unknown reconstructor '" + name +
+                                 "' (available: " + list + ")");
+        }
+    // reconstruct.<name>.<key> goes to that reconstructor; reconstruct.<key>
+    // to the only one chosen.
+    const std::vector<Params> parts = p.parts("reconstruct", names);
+    for (size_t i = 0; i < names.size(); ++i) {
+        const std::string& name = names[i];
+        const Params& given = parts[i];
+        Params mp = given;
+        if ((name == "poisson-l1" || name == "poisson-l2") && !mp.has("alpha")) mp.set("alpha", r.alpha);
+        Method m{name, reconstruction_layer(name), registry.create(name, mp)};
+        // What describe() stores: the given keys, each with the value its
+        // reconstructor reports for it, where it does (a file made absolute).
+        const auto reported = key_values(m.made->describe());
+        for (const auto& [key, value] : given.values()) {
+            const auto it = reported.find(key);
+            r.stored += given.key_prefix() + key + "=" + (it != reported.end() ? it->second : to_string(value)) + "\n";
+        }
+        r.methods.push_back(std::move(m));
     }
     return r;
 }
 
 std::string GradientReconstructions::describe() const {
-    return "reconstruct=" + choice + "\nalpha=" + fmt::format("{}", alpha) + "\n" +
-           (neural_weights.empty() ? "" : "neural_weights=" + neural_weights + "\n");
+    return "reconstruct=" + choice + "\nalpha=" + fmt::format("{}", alpha) + "\n" + stored;
 }
 
-void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::string& who) const {
-    const bool weighted = choice == "all" || choice == "weighted";
-    const bool l1 = choice == "all" || choice == "l1+l2" || choice == "l1";
-    const bool l2 = choice == "all" || choice == "l1+l2" || choice == "l2";
-    const bool neural = choice == "neural";
-    if (!weighted && !l1 && !l2 && !neural) return;
+void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::string& /*who*/) const {
+    if (methods.empty()) return;
     GradientBuffers gb = gradient_buffers(fb);
     Image spp_image;
     if (!gb.spp && spp > 0) {
@@ -268,16 +327,10 @@ void GradientReconstructions::add(FrameBuffer& fb, int64_t spp, const std::strin
         std::fill(spp_image.values().begin(), spp_image.values().end(), float(spp));
         gb.spp = &spp_image;
     }
-    if (weighted) fb.set("reconstruction_weighted", reconstruct("poisson-weighted", Params(who), gb));
-    Params rp(who);
-    rp.set("alpha", alpha);
-    if (l1) fb.set("reconstruction_l1", reconstruct("poisson-l1", rp, gb));
-    if (l2) fb.set("reconstruction_l2", reconstruct("poisson-l2", rp, gb));
-    if (neural) {
-        Params np(who);
-        if (!neural_weights.empty()) np.set("weights", neural_weights);
-        fb.set("reconstruction_neural", reconstruct("neural", np, gb));
-    }
+    // Every method reads the same input: the layers are set after all have run.
+    std::vector<Image> results;
+    for (const Method& m : methods) results.push_back(m.made->reconstruct(gb));
+    for (size_t i = 0; i < methods.size(); ++i) fb.set(methods[i].layer, std::move(results[i]));
 }
 
 void fill_masked_gradients(FrameBuffer& fb) {

@@ -51,10 +51,10 @@ public:
             if (combined_names_[0] == combined_names_[1] || combined_names_[0] == "combined" ||
                 combined_names_[1] == "combined")
                 throw ParameterError(who_ + ": shifts must name two different registered shifts, got '" + list + "'");
-            shift_ = shift_registry().create(combined_names_[0], Params("shift"));
-            shift2_ = shift_registry().create(combined_names_[1], Params("shift"));
+            auto made = make_shifts(p, {combined_names_[0], combined_names_[1]}, shift_params_);
+            shift_ = std::move(made[0]), shift2_ = std::move(made[1]);
         } else {
-            shift_ = shift_registry().create(shift_name, Params("shift"));
+            shift_ = std::move(make_shifts(p, {shift_name}, shift_params_)[0]);
         }
         config_.threshold = float(p.get_real("threshold", 0.001));
         config_.probabilistic = p.get_choice("classification", "hard", {"hard", "probabilistic"}) == "probabilistic";
@@ -76,7 +76,7 @@ public:
                "\nclassification=" + (config_.probabilistic ? "probabilistic" : "hard") +
                "\nmis=" + (mis_.heuristic == MisHeuristic::Power ? "power" : "balance") +
                "\nmax_depth=" + std::to_string(trace_.max_vertices) + "\nrr_depth=" + std::to_string(trace_.rr_depth) +
-               "\nprimal=" + (primal_both_ ? "both" : "base") + "\n" + recon_.describe();
+               "\nprimal=" + (primal_both_ ? "both" : "base") + "\n" + shift_params_ + recon_.describe();
     }
 
 protected:
@@ -437,6 +437,7 @@ private:
     bool primal_both_ = true;
     int batch_ = kMaxBatch;
     GradientReconstructions recon_;
+    std::string shift_params_;  // the shift.* parameters as "key=value" lines
     std::string who_;
 };
 

@@ -451,13 +451,21 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
 }  // namespace
 
 void register_builtin_shifts(Registry<Shift>& r) {
-    r.add("half-vector", "reconnection where possible, half-vector copy through glossy/specular vertices (PI)",
-          [](const Params&) { return make_shift(HalfVectorShift{}); });
-    r.add("reconnection", "reconnect at the first vertex, fail otherwise",
-          [](const Params&) { return make_shift(ReconnectionShift{}); });
-    r.add("replay", "random-number replay at every vertex", [](const Params&) { return make_shift(ReplayShift{}); });
-    r.add("replay-reconnect", "replay until connectable, then reconnect (survey's simple shift)",
-          [](const Params&) { return make_shift(ReplayReconnectShift{}); });
+    register_shift<HalfVectorShift>(r, "reconnection where possible, half-vector copy through glossy/specular vertices (PI)");
+    register_shift<ReconnectionShift>(r, "reconnect at the first vertex, fail otherwise");
+    register_shift<ReplayShift>(r, "random-number replay at every vertex");
+    register_shift<ReplayReconnectShift>(r, "replay until connectable, then reconnect (survey's simple shift)");
+}
+
+std::vector<std::unique_ptr<Shift>> make_shifts(const Params& p, const std::vector<std::string>& names,
+                                                std::string& stored) {
+    const std::vector<Params> parts = p.parts("shift", names);
+    std::vector<std::unique_ptr<Shift>> out;
+    for (size_t i = 0; i < names.size(); ++i) {
+        out.push_back(shift_registry().create(names[i], parts[i]));
+        for (const auto& [key, value] : parts[i].values()) stored += parts[i].key_prefix() + key + "=" + to_string(value) + "\n";
+    }
+    return out;
 }
 
 Registry<Shift>& shift_registry() {

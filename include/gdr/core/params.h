@@ -49,9 +49,24 @@ public:
     /// Raw access for merging.
     const std::map<std::string, Value>& values() const { return values_; }
 
+    /// The parameters of a part chosen by name (a reconstructor, a shift): the
+    /// keys "<prefix>.<key>" of these, as "<key>", in Params whose messages
+    /// name the full key ("unknown parameter 'reconstruct.radius'"). Marks
+    /// the prefixed keys read here: the part's own registry checks them.
+    Params prefixed(const std::string& prefix) const;
+    /// The parameters of the parts that parameter `prefix` chooses by name
+    /// (`names`, in order; one Params each): "<prefix>.<name>.<key>" goes to
+    /// part `name`, "<prefix>.<key>" to the only part chosen. Throws
+    /// ParameterError naming the key for "<prefix>.<key>" when none or several
+    /// are chosen, or when both forms are mixed. Marks every prefixed key read here.
+    std::vector<Params> parts(const std::string& prefix, const std::vector<std::string>& names) const;
+    /// What prefixed() removed from each key ("reconstruct."), "" otherwise.
+    const std::string& key_prefix() const { return key_prefix_; }
+
 private:
     [[noreturn]] void bad_type(const std::string& key, const char* expected) const;
     std::string context_ = "parameters";
+    std::string key_prefix_;
     std::map<std::string, Value> values_;
     mutable std::set<std::string> used_;
 };

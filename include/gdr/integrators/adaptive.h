@@ -49,8 +49,9 @@ struct GradientSelectOptions {
     Criterion criterion = Criterion::Model;
     int tile = 16;             ///< Side of the square blocks decided together (pixels, >= 1).
     double max_density = 8.0;  ///< Most samples a primal-only pixel takes per gradient pixel's (>= 1).
-    /// Criterion::Measured: the reconstructor whose variance is measured (its
-    /// defaults; its layer "reconstruction_weighted" is reused for poisson-weighted).
+    /// Criterion::Measured: the reconstructor whose variance is measured (any
+    /// registered name, with its defaults; a pilot's own layer of it,
+    /// reconstruction_layer(method), is reused where the pilot has one).
     std::string method = "poisson-weighted";
 };
 

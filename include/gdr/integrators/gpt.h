@@ -1,11 +1,17 @@
 // Gradient-domain path tracing (PI): the estimator of one base/offset pair.
 #pragma once
 
+#include <memory>
+#include <string>
+#include <vector>
+
 #include "gdr/integrators/integrator.h"
 #include "gdr/shift/mis.h"
 #include "gdr/shift/offset_path.h"
 
 namespace gdr {
+
+class Reconstructor;
 
 /// Sums of the MIS-weighted contributions of one base path and its offset.
 struct PairEstimate {
@@ -56,27 +62,49 @@ PairEstimate evaluate_pair(const Scene& scene, const CameraPath& x, const BaseTe
 /// The reconstructions a gradient-domain integrator (gpt, gbdpt) stores
 /// beside its primal and gradients, from its `reconstruct` and `alpha` parameters.
 struct GradientReconstructions {
-    std::string choice = "all";  ///< The `reconstruct` parameter: all, weighted, l1+l2, l1, l2, neural or none.
-    double alpha = 0.2;          ///< Weight of the primal in the screened Poisson energy (unitless).
-    /// The `neural_weights` parameter: a weights file for reconstruct=neural
-    /// (made absolute, so that --resume and merge find it from anywhere);
-    /// empty = the neural reconstructor's default (the shipped model).
-    std::string neural_weights;
-    /// Reads `reconstruct`, `alpha` and `neural_weights` for integrator `who`;
-    /// throws ParameterError naming a bad one (neural_weights without
-    /// reconstruct=neural, or a file that does not exist), or for
-    /// reconstruct=neural if reconstructor_registry() has no "neural" (it is
-    /// registered by the optional gdr_neural library).
+    /// The `reconstruct` parameter as given: a comma list of registered
+    /// reconstructor names (see methods_of()), "all" or "none".
+    std::string choice = "all";
+    double alpha = 0.2;  ///< Weight of the primal in the screened Poisson energy of poisson-l1, poisson-l2 (unitless).
+
+    /// One chosen reconstruction.
+    struct Method {
+        std::string name;   ///< Registry name ("poisson-l1", a plugin's name).
+        std::string layer;  ///< Its layer: reconstruction_layer(name).
+        std::shared_ptr<const Reconstructor> made;  ///< Made once, from its parameters, when the integrator is.
+    };
+    std::vector<Method> methods;  ///< In the order `choice` names them.
+    /// The reconstruct.* parameters as stored "key=value" lines, each value as
+    /// its reconstructor reports it in describe() where it does (a weights
+    /// file made absolute), so a resume or merge elsewhere makes the same.
+    std::string stored;
+
+    /// Reads `reconstruct`, `alpha` and every `reconstruct.<key>` (to the one
+    /// chosen reconstructor) or `reconstruct.<name>.<key>` (to reconstructor
+    /// `name` of a list) for integrator `who`, and makes the reconstructors;
+    /// throws ParameterError naming an unregistered name (with the registered
+    /// ones), a key no chosen reconstructor reads, or `neural_weights` (now
+    /// reconstruct.weights).
     static GradientReconstructions from(const Params& p, const std::string& who);
-    /// The parameters above as "key=value" lines (neural_weights only if set), for describe().
+    /// The registry names a `reconstruct` value asks for, in order: a comma
+    /// list of names, where the short names of the built-in solves stay
+    /// (all = weighted,l1,l2; l1+l2; weighted = poisson-weighted; l1 =
+    /// poisson-l1; l2 = poisson-l2) and none is the empty list. Names are not
+    /// checked against the registry; ParameterError for an empty or repeated entry.
+    static std::vector<std::string> methods_of(const std::string& choice, const std::string& who);
+    /// The parameters above as "key=value" lines, for describe().
     std::string describe() const;
-    /// Sets the chosen layers (reconstruction_weighted, _l1, _l2, _neural; radiance) of
-    /// fb's primal and gradients, each with the directly visible emitters
-    /// added back. The weighted one reads the variances and the sample
-    /// counts: `spp`, where fb has no spp layer yet (a render's own
-    /// finalize(); TiledIntegrator adds it after).
+    /// Sets each chosen method's layer (radiance) from fb's primal and
+    /// gradients, with the directly visible emitters added back. The weighted
+    /// one reads the variances and the sample counts: `spp`, where fb has no
+    /// spp layer yet (a render's own finalize(); TiledIntegrator adds it after).
     void add(FrameBuffer& fb, int64_t spp, const std::string& who) const;
 };
+
+/// The layer a render stores reconstructor `method`'s result in:
+/// "reconstruction_<method>", except the built-in solves' short names
+/// (reconstruction_weighted, reconstruction_l1, reconstruction_l2).
+std::string reconstruction_layer(const std::string& method);
 
 /// For a render with a "gradient_mask" layer (RenderSettings::gradient_mask):
 /// sets every gradient layer (dx, dy, and combined shifts' dx_<shift>,

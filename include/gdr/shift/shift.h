@@ -4,15 +4,19 @@
 // (a direction of its own, or a reconnection onto the base's next vertex
 // x_{k+1}) and returns the Jacobian |d omega_y / d omega_x| of that step.
 //
-// A new shift is any type satisfying the ShiftMapping concept; wrap it with
-// make_shift() and add it to shift_registry() to use it in the `gpt`
-// integrator and the validator, without touching gdr.
+// A new shift is any type satisfying the ShiftMapping concept; add it to
+// shift_registry() with register_shift<S>() (under S::kName) to use it in the
+// `gpt` and `gbdpt` integrators and the validator, without touching gdr. A
+// shift constructible from `const Params&` takes parameters: a render's
+// shift.<key>=value reaches it, and a key it does not read is refused.
 #pragma once
 
 #include <concepts>
 #include <memory>
 #include <string>
 #include <string_view>
+#include <type_traits>
+#include <vector>
 
 #include "gdr/core/params.h"
 #include "gdr/path/trace.h"
@@ -123,6 +127,26 @@ template <ShiftMapping S>
 std::unique_ptr<Shift> make_shift(S s) {
     return std::make_unique<ShiftModel<S>>(std::move(s));
 }
+
+/// Registers shift mapping S under its S::kName with a one-line description:
+/// made from the render's shift parameters if S is constructible from
+/// `const Params&` (every key it does not read is then refused), else
+/// default-constructed (any parameter is refused).
+template <ShiftMapping S>
+void register_shift(Registry<Shift>& registry, const std::string& description) {
+    registry.add(std::string(S::kName), description, [](const Params& p) -> std::unique_ptr<Shift> {
+        if constexpr (std::is_constructible_v<S, const Params&>) return make_shift(S(p));
+        else return (void)p, make_shift(S{});
+    });
+}
+
+/// Makes shifts `names` of shift_registry() for an integrator with
+/// parameters `p`: shift.<key>=value goes to the one shift, or
+/// shift.<name>.<key>=value to shift `name` of several (Params::parts), and a
+/// key no shift reads is refused (ParameterError naming it). Appends the
+/// given shift parameters to `stored` as "key=value" lines, for describe().
+std::vector<std::unique_ptr<Shift>> make_shifts(const Params& p, const std::vector<std::string>& names,
+                                                std::string& stored);
 
 /// The process-wide shift registry (reconnection, half-vector, replay, replay-reconnect built in).
 Registry<Shift>& shift_registry();

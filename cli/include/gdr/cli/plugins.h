@@ -1,7 +1,9 @@
 // Plugins of the gdr tool: shared libraries, loaded on demand with dlopen(),
-// that add reconstructors to the process-wide registry. The neural
-// reconstructor is one: it needs libtorch, whose loading costs about 0.8 s,
-// so only the runs that use it pay for it.
+// that add integrators, reconstructors and shift mappings to the
+// process-wide registries through gdr's entry point (gdr/plugin.h). The
+// neural reconstructor is one: it needs libtorch, whose loading costs about
+// 0.8 s, so plugins are loaded only when a run names something that is not
+// registered, and a plain render does not pay for them.
 //
 // Where plugins are looked for, in order:
 //   - the directories of $GDR_PLUGIN_PATH (colon-separated), if it is set
@@ -10,27 +12,20 @@
 //     the path from the install's bindir to <libdir>/gdr that CMake computes
 //     (../lib/gdr by default): an installed bin/gdr finds lib/gdr, and the
 //     build tree has the same layout (build/bin/gdr, build/lib/gdr).
-//
-// A plugin and the tool share C++ types (Registry, Params, Image) by layout,
-// so a plugin is used only if its gdr_plugin_abi() equals the tool's (same
-// gdr version, compiler and language standard). Loaded plugins are never
-// unloaded: the registry holds their factories.
+// Every file NAME.so in them is loaded; one that does not export
+// gdr_plugin_register and gdr_plugin_abi, or whose gdr_plugin_abi() differs
+// from the tool's (same gdr version, compiler and language standard), is
+// skipped, and named with the reason where a name stays unknown. Where two
+// plugins register one name, the one of the earlier directory wins. Loaded
+// plugins are never unloaded: the registries hold their factories.
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gdr/core/params.h"
-#include "gdr/reconstruct/reconstructor.h"
-
-/// The entry points a plugin exports (C linkage, so that dlsym finds them by
-/// these names). The tool only looks them up; each plugin defines them.
-extern "C" {
-/// The build identity of the plugin; the tool refuses one that differs from its own.
-const char* gdr_plugin_abi();
-/// Adds the plugin's reconstructors to `registry` (the tool's process-wide one).
-void gdr_plugin_register_reconstructors(gdr::Registry<gdr::Reconstructor>* registry);
-}
+#include "gdr/plugin.h"
 
 namespace gdr::cli {
 
@@ -40,31 +35,37 @@ inline constexpr const char* kNeuralPluginFile = "libgdr_neural_plugin.so";
 /// The directories searched for plugins, in order (see the file comment).
 std::vector<std::string> plugin_search_dirs();
 
-/// What load_reconstructor_plugins() found.
+/// What load_plugins() found.
 struct PluginLoad {
-    bool loaded = false;                ///< True if a plugin was loaded and registered.
-    std::string path;                   ///< The plugin file loaded or found ("" if none was found).
-    std::string error;                  ///< Why a plugin that was found could not be used ("" if none).
-    std::vector<std::string> searched;  ///< The directories searched.
+    std::vector<std::string> loaded;                            ///< Plugin files loaded and registered.
+    std::vector<std::pair<std::string, std::string>> skipped;  ///< Files not used, each with why.
+    std::vector<std::string> searched;                          ///< The directories searched.
 };
 
-/// Loads the neural reconstructor's plugin from the first search directory
-/// that holds it and registers its reconstructors into
-/// reconstructor_registry(). Runs once per process (later calls return the
-/// first result); never throws: a failure is reported in the result.
-const PluginLoad& load_reconstructor_plugins();
+/// Loads every plugin of the search directories and registers what they
+/// add into the process-wide registries. Runs once per process (later calls
+/// return the first result); never throws: a failure is reported in the result.
+const PluginLoad& load_plugins();
 
 /// Makes sure reconstructor `method` is registered: if it is not, loads the
-/// plugins (once) and checks again. If "neural" is still missing, throws a
-/// ParameterError that begins with `context` (e.g. "--method neural") and
-/// says why: the plugin was not built (how to build it) or could not be
-/// loaded (the file and the loader's message). Any other missing name is
-/// left to the registry, whose create() names it and lists the available ones.
+/// plugins (once) and checks again. If it is still missing, throws a
+/// ParameterError that begins with `context` (e.g. "gdr reconstruct --method
+/// neural"), lists the registered names and names each plugin file skipped
+/// and why; for "neural", says how to build it (it needs libtorch) or why its
+/// plugin could not be loaded.
 void require_reconstructor(const std::string& method, const std::string& context);
 
-/// require_reconstructor() for the reconstruction an integrator's parameters
-/// ask for (reconstruct=neural of gpt, gbdpt and tgpt), before the integrator
-/// is created; `context` says where the parameters came from.
-void require_reconstructors_of(const Params& integrator_params, const std::string& context);
+/// The same for shift mapping `name`.
+void require_shift(const std::string& name, const std::string& context);
+
+/// The same for integrator `name`.
+void require_integrator(const std::string& name, const std::string& context);
+
+/// require_reconstructor() for every reconstructor an integrator's
+/// parameters choose (reconstruct=NAME[,NAME...] of gpt, gbdpt and tgpt) and
+/// require_shift() for its shift (shift=NAME, or both of shifts=A,B with
+/// shift=combined), before the integrator is created; `context` says where
+/// the parameters came from.
+void require_plugins_of(const Params& integrator_params, const std::string& context);
 
 }  // namespace gdr::cli
