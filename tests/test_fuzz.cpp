@@ -594,10 +594,18 @@ TEST_CASE("fuzz: hostile structure, special files and far-away coordinates throu
             for (int i = 0; i < 48; ++i) {
                 const std::string x = far_number(rng), y = far_number(rng);
                 if (i % 2 == 0) {
-                    // A JSON camera: far along its axis, or off to the side.
-                    write_bytes(dir / "f.json", json_scene(i % 4 == 0 ? "[0, 1, " + x + "]" : "[" + x + ", " + y + ", 3.5]"));
+                    // A JSON camera far along its axis or off to the side, or a JSON mesh moved and scaled far away.
+                    std::string scene = json_scene(i % 8 == 0 ? "[0, 1, " + x + "]" : "[" + x + ", " + y + ", 3.5]");
+                    if (i % 4 == 2) {
+                        scene = json_scene("[0, 1, 3.5]", "box.obj");
+                        const std::string mesh = "[\"box.obj\"]";
+                        scene.replace(scene.find(mesh), mesh.size(),
+                                      R"([{"file": "box.obj", "transform": {"scale": )" + y + R"(, "translate": [0, 0, )" +
+                                          x + "]}}]");
+                    }
+                    write_bytes(dir / "f.json", scene);
                     static const char* kIntegrators[] = {"pt", "gpt", "bdpt", "gbdpt"};
-                    run_case(t, "JSON camera " + x + " " + y, dir,
+                    run_case(t, "JSON camera / mesh " + x + " " + y, dir,
                              render(at("f.json"), {"--integrator", kIntegrators[rng() % 4]}), {"f.json"});
                 } else {
                     // A Mitsuba camera, or a mesh scaled and moved far away.

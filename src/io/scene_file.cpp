@@ -23,6 +23,7 @@
 #include <tiny_obj_loader.h>
 
 #include "gdr/core/error.h"
+#include "gdr/scene/coordinates.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/mitsuba_xml.h"
 #include "obj_lines.h"
@@ -751,6 +752,10 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
                 if (!is_finite(v))
                     throw InputError(path + ": vertex " + std::to_string(vi + 1) + " is not a finite number");
                 p[k] = Vec3(xf * Vec4(v, 1.f));
+                if (!within_coordinate_range(p[k]))  // Embree would refuse rays from it (see kMaxCoordinate)
+                    throw InputError(fmt::format("{}{}: vertex {} lies at ({}, {}, {}) after the transform, beyond "
+                                                 "+-{:g} on an axis", scene_file.empty() ? "" : scene_file + ": meshes[] ",
+                                                 path, vi + 1, p[k].x, p[k].y, p[k].z, kMaxCoordinate));
                 // An index past the end is a malformed face (a typo in f a/b/c), not an absent attribute.
                 const int ni = c[k].normal_index, ti = c[k].texcoord_index;
                 if (ni >= 0 && size_t(3 * ni + 2) >= attrib.normals.size())
