@@ -7,6 +7,7 @@
 #   2. SIGTERM and two Ctrl-Cs while the output's temporary is written (held
 #      open by GDR_TEST_WRITE_DELAY_MS, a test-only delay before the rename):
 #      the file is finished, exit 143 / 130, all its samples kept;
+#      gdr merge and gdr reconstruct likewise;
 #   3. an in-place --continue stopped during its write keeps its new samples;
 #   4. two --continue runs of one part: the second is refused while the first
 #      holds the output's lock (naming the first's pid), and a part changed
@@ -71,6 +72,25 @@ for sig in TERM INT2; do
     [ -z "$left" ] || fail "$sig during the write: left $left"
 done
 echo "2. SIGTERM, and two Ctrl-Cs, during the write: done"
+
+# 2b. gdr merge and gdr reconstruct stopped in their write.
+"$gdr" render "$scene" --integrator gpt --spp 2 --seed 1 -o "$work/g1.exr" 2>"$work/log" || fail "merge: part 1 failed"
+"$gdr" render "$scene" --integrator gpt --spp 2 --seed 2 -o "$work/g2.exr" 2>"$work/log" || fail "merge: part 2 failed"
+for cmd in merge reconstruct; do
+    rm -f "$work"/o.*
+    if [ "$cmd" = merge ]; then args=(merge "$work/g1.exr" "$work/g2.exr" -o "$work/o.exr"); else args=(reconstruct "$work/g1.exr" -o "$work/o.exr"); fi
+    GDR_TEST_WRITE_DELAY_MS=1500 "$gdr" "${args[@]}" 2>"$work/log" &
+    pid=$!
+    wait_for "$work/o.exr.tmp*" || fail "$cmd stopped in its write: no temporary seen"
+    kill -TERM "$pid"
+    wait "$pid"
+    rc=$?
+    [ "$rc" = 143 ] || fail "$cmd stopped in its write: exit status $rc, expected 143"
+    "$gdr" info "$work/o.exr" > /dev/null 2>&1 || fail "$cmd stopped in its write: o.exr was not written"
+    left=$(leftovers)
+    [ -z "$left" ] || fail "$cmd stopped in its write: left $left"
+done
+echo "2b. merge and reconstruct stopped in their write: done"
 
 # 3. An in-place --continue stopped during its write.
 rm -f "$work"/c.*

@@ -398,10 +398,9 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
         say("resuming {}: {} spp held, {}\n", resume_path, previous.spp,
             st.time_budget > 0.0 ? fmt::format("{:.3f} s more", st.time_budget) : fmt::format("{} spp more", st.spp));
 
-    // From the first sample to the file's last byte a stop signal only stops
-    // the sampling: the samples taken so far are then written (or rescued),
-    // and a signal during the write lets it finish.
-    const PolledStop polled;
+    // While sampling, a stop signal only stops the sampling: the samples
+    // taken so far are then written (or rescued).
+    std::optional<PolledStop> polled(std::in_place);
     FrameBuffer fb;
     RenderStats rs;
     {
@@ -425,6 +424,11 @@ int render_one(const std::vector<std::string>& args, FrameJob* job) {
     }
 
     const bool interrupted = stop_flag() || abort_flag();
+    // Sampling is over: from here a stop signal lets the file be finished
+    // (or the rescue file written) and then ends the run. Taken before the
+    // polled scope ends, so that no moment is left uncovered.
+    const WriteSection writing;
+    polled.reset();
     if (frame) {
         // In the driver, not the integrators: every integrator's frames get them.
         const auto t_motion = std::chrono::steady_clock::now();

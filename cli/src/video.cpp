@@ -217,6 +217,10 @@ int run_video(const VideoJob& job) {
     // Debian's ffmpeg has libx264; a build without it gets its default MP4 encoder (MPEG-4 part 2).
     const ProgramResult encoders = run_program({ffmpeg, "-hide_banner", "-encoders"});
     const bool x264 = encoders.status == 0 && encoders.out.find(" libx264 ") != std::string::npos;
+    // Stops the encoding cleanly on Ctrl-C or SIGTERM, so that no partial MP4
+    // stays behind: made before the temporary, so that it covers every moment
+    // until the temporary is renamed or removed.
+    const PolledStop stop;
     PartialFile partial{(fs::path(job.mp4).parent_path() /
                          fmt::format(".{}.partial-{}", fs::path(job.mp4).filename().string(), getpid()))
                             .string()};
@@ -229,8 +233,6 @@ int run_video(const VideoJob& job) {
 
     ProgramResult r;
     {
-        // Stops the encoding cleanly on Ctrl-C or SIGTERM, so that no partial MP4 stays behind.
-        const PolledStop stop;
         try {
             r = run_program_fed(argv, [&]() -> std::string {
                 if (stop_flag()) throw Stopped{};
