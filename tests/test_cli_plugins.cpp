@@ -304,6 +304,9 @@ TEST_CASE("plugin files that are not gdr plugins are skipped, and named only whe
                         "reconstruct=jacobi-poisson", "-o", dir("found.exr")},
                        dir("found.log"), path.c_str());
     CHECK(r.status == 0);
+    // Its preview shows the plugin's reconstruction (it showed "color" when
+    // the preview knew only the built-in names).
+    CHECK_THAT(r.output, Contains("found.png (reconstruction_jacobi-poisson)"));
     // A name no plugin registers: the skipped files are named, with why.
     r = test::run_tool(GDR_TOOL,
                        {"render", kScene, "--integrator", "gpt", "--spp", "1", "--set", "shift=nowhere", "-o",
