@@ -196,6 +196,22 @@ TEST_CASE("an outside plugin's reconstructor is chosen by name in render, recons
     CHECK_THAT(r.output, Contains("'reconstruct.jacobi-poisson.iterations'") && Contains("3000"));
     CHECK_FALSE(std::filesystem::exists(dir("r2.exr")));
 
+    // gdr submit checks the names and keys before writing its scripts, and
+    // its render jobs pass them on.
+    r = test::run_tool(GDR_TOOL,
+                       with(with({"submit", kScene, "--parts", "2", "--spp", "4", "--integrator", "gpt"}, recon),
+                            {"--dry-run", "-o", dir("s.exr")}),
+                       dir("s.log"), plugins);
+    INFO(r.output);
+    CHECK(r.status == 0);
+    CHECK_THAT(r.output, Contains("reconstruct.jacobi-poisson.iterations=3000"));
+    r = test::run_tool(GDR_TOOL,
+                       {"submit", kScene, "--parts", "2", "--spp", "4", "--integrator", "gpt", "--set",
+                        "reconstruct=jacobi-poison", "--dry-run", "-o", dir("s2.exr")},
+                       dir("s2.log"), plugins);
+    CHECK(r.status == 1);
+    CHECK_THAT(r.output, Contains("gdr submit") && Contains("unknown reconstructor 'jacobi-poison'"));
+
     // Named errors, before rendering: an unknown name lists what is
     // registered, the plugin's names too; an unknown key is named in full.
     r = test::run_tool(GDR_TOOL, with(render, {"--set", "reconstruct=jacobi-poison", "-o", dir("e1.exr")}), dir("e1.log"),
