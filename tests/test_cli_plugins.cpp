@@ -334,6 +334,22 @@ TEST_CASE("plugin files that are not gdr plugins are skipped, and named only whe
     if (have_libm) CHECK_THAT(r.output, Contains(dir("junk/libm.so")) && Contains("not a gdr plugin"));
 }
 
+TEST_CASE("a plugin built for another gdr is skipped, naming both builds", "[cli][plugins]") {
+    const test::OutDir dir("plugins-abi");
+    const std::string plugin = GDR_WRONG_ABI_PLUGIN;
+    const std::string path = std::filesystem::path(plugin).parent_path().string();
+    const test::ToolRun r = test::run_tool(GDR_TOOL,
+                                           {"render", kScene, "--integrator", "gpt", "--spp", "1", "--set",
+                                            "shift=late-reconnect", "-o", dir("e.exr")},
+                                           dir("e.log"), path.c_str());
+    INFO(r.output);
+    CHECK(r.status == 1);
+    // Its shift is not registered: the file is named, with the two builds.
+    CHECK_THAT(r.output, Contains("unknown shift mapping 'late-reconnect'") && Contains(plugin) &&
+                             Contains("it was built for gdr 0.0, another compiler") && Contains("this gdr is"));
+    CHECK_FALSE(std::filesystem::exists(dir("e.exr")));
+}
+
 TEST_CASE("reconstruct= takes registered names and their parameters, in the library too", "[cli][plugins]") {
     using Methods = std::vector<std::string>;
     CHECK(GradientReconstructions::methods_of("all", "t") == Methods{"poisson-weighted", "poisson-l1", "poisson-l2"});
