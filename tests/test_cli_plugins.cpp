@@ -196,6 +196,22 @@ TEST_CASE("an outside plugin's reconstructor is chosen by name in render, recons
     CHECK_THAT(r.output, Contains("'reconstruct.jacobi-poisson.iterations'") && Contains("3000"));
     CHECK_FALSE(std::filesystem::exists(dir("r2.exr")));
 
+    // gdr submit checks the names and keys before writing its scripts, and
+    // its render jobs pass them on.
+    r = test::run_tool(GDR_TOOL,
+                       with(with({"submit", kScene, "--parts", "2", "--spp", "4", "--integrator", "gpt"}, recon),
+                            {"--dry-run", "-o", dir("s.exr")}),
+                       dir("s.log"), plugins);
+    INFO(r.output);
+    CHECK(r.status == 0);
+    CHECK_THAT(r.output, Contains("reconstruct.jacobi-poisson.iterations=3000"));
+    r = test::run_tool(GDR_TOOL,
+                       {"submit", kScene, "--parts", "2", "--spp", "4", "--integrator", "gpt", "--set",
+                        "reconstruct=jacobi-poison", "--dry-run", "-o", dir("s2.exr")},
+                       dir("s2.log"), plugins);
+    CHECK(r.status == 1);
+    CHECK_THAT(r.output, Contains("gdr submit") && Contains("unknown reconstructor 'jacobi-poison'"));
+
     // Named errors, before rendering: an unknown name lists what is
     // registered, the plugin's names too; an unknown key is named in full.
     r = test::run_tool(GDR_TOOL, with(render, {"--set", "reconstruct=jacobi-poison", "-o", dir("e1.exr")}), dir("e1.log"),
@@ -304,6 +320,9 @@ TEST_CASE("plugin files that are not gdr plugins are skipped, and named only whe
                         "reconstruct=jacobi-poisson", "-o", dir("found.exr")},
                        dir("found.log"), path.c_str());
     CHECK(r.status == 0);
+    // Its preview shows the plugin's reconstruction (it showed "color" when
+    // the preview knew only the built-in names).
+    CHECK_THAT(r.output, Contains("found.png (reconstruction_jacobi-poisson)"));
     // A name no plugin registers: the skipped files are named, with why.
     r = test::run_tool(GDR_TOOL,
                        {"render", kScene, "--integrator", "gpt", "--spp", "1", "--set", "shift=nowhere", "-o",
@@ -313,6 +332,22 @@ TEST_CASE("plugin files that are not gdr plugins are skipped, and named only whe
     CHECK_THAT(r.output, Contains("unknown shift mapping 'nowhere'") && Contains(dir("junk/libbroken.so")) &&
                              Contains("late-reconnect"));
     if (have_libm) CHECK_THAT(r.output, Contains(dir("junk/libm.so")) && Contains("not a gdr plugin"));
+}
+
+TEST_CASE("a plugin built for another gdr is skipped, naming both builds", "[cli][plugins]") {
+    const test::OutDir dir("plugins-abi");
+    const std::string plugin = GDR_WRONG_ABI_PLUGIN;
+    const std::string path = std::filesystem::path(plugin).parent_path().string();
+    const test::ToolRun r = test::run_tool(GDR_TOOL,
+                                           {"render", kScene, "--integrator", "gpt", "--spp", "1", "--set",
+                                            "shift=late-reconnect", "-o", dir("e.exr")},
+                                           dir("e.log"), path.c_str());
+    INFO(r.output);
+    CHECK(r.status == 1);
+    // Its shift is not registered: the file is named, with the two builds.
+    CHECK_THAT(r.output, Contains("unknown shift mapping 'late-reconnect'") && Contains(plugin) &&
+                             Contains("it was built for gdr 0.0, another compiler") && Contains("this gdr is"));
+    CHECK_FALSE(std::filesystem::exists(dir("e.exr")));
 }
 
 TEST_CASE("reconstruct= takes registered names and their parameters, in the library too", "[cli][plugins]") {

@@ -36,8 +36,8 @@ int main(int argc, char** argv) {
         return 2;
     }
     try {
-        gdr::shift_registry().add("late-reconnect", "replay at the first vertex, reconnect later",
-                                  [](const gdr::Params&) { return gdr::make_shift(LateReconnectShift{}); });
+        // Registered under its kName; examples/plugin has a version with a parameter.
+        gdr::register_shift<LateReconnectShift>(gdr::shift_registry(), "replay at the first vertex, reconnect later");
 
         const gdr::SceneFile sf = gdr::load_scene_file(argv[1]);
         gdr::ValidateOptions vopt;

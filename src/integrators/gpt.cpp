@@ -302,12 +302,16 @@ GradientReconstructions GradientReconstructions::from(const Params& p, const std
         Params mp = given;
         if ((name == "poisson-l1" || name == "poisson-l2") && !mp.has("alpha")) mp.set("alpha", r.alpha);
         Method m{name, reconstruction_layer(name), registry.create(name, mp)};
-        // What describe() stores: the given keys, each with the value its
-        // reconstructor reports for it, where it does (a file made absolute).
+        // What describe() stores: the given keys and values, a text value as
+        // its reconstructor reports it where it does (a file made absolute).
+        // Numbers stay as given: threads=0 (all) must not become this
+        // machine's count, which another part of a merge would not share.
         const auto reported = key_values(m.made->describe());
         for (const auto& [key, value] : given.values()) {
             const auto it = reported.find(key);
-            r.stored += given.key_prefix() + key + "=" + (it != reported.end() ? it->second : to_string(value)) + "\n";
+            const bool text = std::holds_alternative<std::string>(value);
+            r.stored += given.key_prefix() + key + "=" + (text && it != reported.end() ? it->second : to_string(value)) +
+                        "\n";
         }
         r.methods.push_back(std::move(m));
     }

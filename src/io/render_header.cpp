@@ -44,9 +44,12 @@ std::string preview_layer(const FrameBuffer& fb) {
     // A gradient-domain render is shown as its variance-weighted (else L1)
     // reconstruction, anything else as its colour. The neural one comes
     // first: a render holds it only when it was asked for (reconstruct=neural).
-    for (const char* name : {"reconstruction_neural", "reconstruction_weighted", "reconstruction_l1", "color"})
+    for (const char* name : {"reconstruction_neural", "reconstruction_weighted", "reconstruction_l1"})
         if (fb.has(name)) return name;
-    return fb.names().front();
+    // Else the first other reconstruction it holds (reconstruct=NAME of a plugin's method).
+    for (const std::string& name : fb.names())
+        if (name.rfind("reconstruction_", 0) == 0) return name;
+    return fb.has("color") ? "color" : fb.names().front();
 }
 
 }  // namespace gdr

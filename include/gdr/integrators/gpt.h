@@ -74,8 +74,8 @@ struct GradientReconstructions {
         std::shared_ptr<const Reconstructor> made;  ///< Made once, from its parameters, when the integrator is.
     };
     std::vector<Method> methods;  ///< In the order `choice` names them.
-    /// The reconstruct.* parameters as stored "key=value" lines, each value as
-    /// its reconstructor reports it in describe() where it does (a weights
+    /// The reconstruct.* parameters as stored "key=value" lines, a text value
+    /// as its reconstructor reports it in describe() where it does (a weights
     /// file made absolute), so a resume or merge elsewhere makes the same.
     std::string stored;
 
