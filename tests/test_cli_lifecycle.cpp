@@ -116,7 +116,7 @@ TEST_CASE("lifecycle: merging a part with a non-finite pixel names the part's fi
 
 // Before the fix nothing was locked: the merge below replaced m.exr while
 // another run held it (checked with the previous binary, exit 0).
-TEST_CASE("lifecycle: an output another run holds is refused at once, naming the holder; no lock file stays",
+TEST_CASE("lifecycle: an output another run holds is refused at once, naming the holder, and no lock file stays",
           "[cli][lifecycle]") {
     OutDir dir("lifecycle-lock");
     REQUIRE(cli::run({"render", kSmall, "--spp", "1", "--seed", "1", "-o", dir("a.exr")}) == 0);
