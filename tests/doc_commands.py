@@ -17,6 +17,10 @@ size), and a frame range A:B becomes 0:2; in Python blocks `spp=N` becomes
 ../shared/ that is absent, and `gdr video` to an MP4 without ffmpeg, are
 skipped with a message. Every other failure fails the test.
 
+The C++ blocks of the README are the examples' code: every code line of
+them (a trailing // comment aside) must be a line of examples/*/main.cpp,
+which ctest builds and runs, so the quick start cannot drift from them.
+
 Usage: doc_commands.py GDR_TOOL SOURCE_DIR [PYTHON_DIR]
 """
 import os
@@ -66,6 +70,26 @@ def tiny(args):
     if out[0] == "render" and not {"--width", "--height", "--resolution"} & set(out):
         out += ["--width", "32"]
     return out
+
+
+def code_line(line):
+    """A C++ line without its trailing // comment and surrounding blanks."""
+    return re.sub(r"\s*//.*$", "", line).strip()
+
+
+def check_cpp_blocks(source):
+    """The README's C++ lines that are in no example (a list of them)."""
+    examples = set()
+    for f in (source / "examples").glob("*/main.cpp"):
+        examples |= {code_line(l) for l in f.read_text().split("\n")}
+    missing, inside = [], False
+    for line in (source / "README.md").read_text().split("\n"):
+        if line.startswith("```"):
+            inside = line.strip() == "```cpp"
+            continue
+        if inside and code_line(line) and code_line(line) not in examples:
+            missing.append(line)
+    return missing
 
 
 def main():
@@ -136,6 +160,10 @@ def main():
                     if r.returncode != 0:
                         failures.append(where)
                         print(r.stdout[-2000:], r.stderr[-2000:], sep="\n")
+    drift = check_cpp_blocks(source)
+    for line in drift:
+        print(f"FAILED: README.md's C++ line is in no examples/*/main.cpp: {line.strip()}")
+    failures += drift
     print(f"doc commands: {ran} ran, {skipped} skipped, {len(failures)} failed")
     if ran == 0:
         print("no command ran: the markers are missing")
