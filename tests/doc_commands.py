@@ -7,8 +7,8 @@ and `build` link to the repository's, and the blocks marked
 `<!-- test: NAME -->` (scene files) of the same document are written into it
 first. Lines starting with `gdr `, `build/bin/gdr ` or `./build/bin/gdr ` run
 the gdr tool given on the command line; other lines are not commands.
-Blocks marked `<!-- test: python -->` run with python3, the module of
-PYTHON_DIR on PYTHONPATH (skipped where it is not built).
+Blocks marked `<!-- test: python -->` run with the Python the module of
+PYTHON_DIR was built for, the module on PYTHONPATH (skipped where it is not built).
 
 To keep it quick, every run is made tiny, and this is the only change:
 `--spp N` becomes `--spp 2`, `gdr render` gets `--width 32` (unless it sets a
@@ -72,6 +72,16 @@ def tiny(args):
     return out
 
 
+def module_python(python_dir):
+    """The interpreter the module was built for (the build's Python3_EXECUTABLE), else this one."""
+    cache = pathlib.Path(python_dir).parent / "CMakeCache.txt"
+    if cache.exists():
+        for line in cache.read_text().split("\n"):
+            if line.startswith("Python3_EXECUTABLE:"):
+                return line.split("=", 1)[1]
+    return sys.executable
+
+
 def code_line(line):
     """A C++ line without its trailing // comment and surrounding blanks."""
     return re.sub(r"\s*//.*$", "", line).strip()
@@ -125,8 +135,8 @@ def main():
                 code = re.sub(r"spp=\d+", "spp=4", text)
                 code = re.sub(r"set_resolution\(\d+, \d+\)", "set_resolution(32, 32)", code)
                 env = dict(os.environ, PYTHONPATH=os.path.abspath(python_dir))
-                r = subprocess.run([sys.executable, "-c", code], cwd=work, env=env, capture_output=True, text=True,
-                                   timeout=600)
+                r = subprocess.run([module_python(python_dir), "-c", code], cwd=work, env=env, capture_output=True,
+                                   text=True, timeout=600)
                 ran += 1
                 print(("ok" if r.returncode == 0 else f"FAILED ({r.returncode})") + f": {where}")
                 if r.returncode != 0:
