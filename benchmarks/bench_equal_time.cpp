@@ -31,7 +31,7 @@
 //                     because the benchmark runs and times each solve itself, so
 //                     'reconstruct' is refused; 'alpha' is used by both solves.
 //   --l1-set key=value  a parameter of the poisson-l1 solve: its schedule, e.g.
-//                     preset=reference (the reference implementation's slow L1D)
+//                     preset=reference (the slow L1D of the authors' public Mitsuba G-PT)
 //                     or iterations, cg_iterations, tolerance (repeatable). The gpt
 //                     integrator itself has no parameter for the L1 schedule.
 //   --weighted NAME:k=v,...  a row "gpt-NAME" reconstructed by poisson-weighted with

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The project's test command, used by the README and by CI: configure a
 # Release build in ./build, build everything on 2 cores, run every test
-# (unit, statistical, examples, and the install + find_package consumer).
+# (unit, statistical, examples, and the install + find_package consumer),
+# and check that a clone works on its own (scripts/clone-check.sh).
 # Then the same suite on the portable scalar build in ./build-scalar
 # (GDR_SIMD=OFF, what processors other than x86-64 get), without the
 # benchmarks and without the neural reconstructor (it uses no SIMD code of
@@ -33,6 +34,9 @@ skipped
 cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
 cmake --build build -j2
 ctest --test-dir build --output-on-failure
+# A clone with nothing beside it renders every scene in scenes/ and skips the
+# tests of the larger public scenes (GDR_SCENES).
+bash scripts/clone-check.sh build
 cmake -S . -B build-scalar -DCMAKE_BUILD_TYPE=Release -DGDR_SIMD=OFF -DGDR_BUILD_BENCHMARKS=OFF -DGDR_BUILD_NEURAL=OFF
 cmake --build build-scalar -j2
 ctest --test-dir build-scalar --output-on-failure

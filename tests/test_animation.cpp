@@ -20,6 +20,7 @@
 #include "gdr/metrics.h"
 #include "gdr/scene/animated_scene.h"
 #include "cli_test_util.h"
+#include "public_scenes.h"
 
 using namespace gdr;
 using Catch::Matchers::Contains;
@@ -506,10 +507,6 @@ TEST_CASE("animation: the bundled animations span 48 frames and move what they s
     CHECK(glm::length(c.fwd) < 5.f);
 
     const std::string moving = kCornell + "moving-object.json";
-    if (!std::ifstream(GDR_SHARED_DIR "/scenes/meshes/spot-cow/spot_triangulated.obj")) {
-        WARN("the shared Spot mesh is missing; moving-object.json not checked");
-        return;
-    }
     SceneFile mo = load_scene_file(moving);
     REQUIRE(mo.animation);
     CHECK(mo.animation->range().count() == 48);

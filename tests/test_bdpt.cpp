@@ -25,6 +25,7 @@
 #include "gdr/io/scene_file.h"
 #include "gdr/path/connection.h"
 #include "gdr/scene/warp.h"
+#include "public_scenes.h"
 
 using namespace gdr;
 using namespace gdr::test;
@@ -65,7 +66,10 @@ TEST_CASE("bdpt equals pt in expectation on the bundled scenes", "[bdpt][statist
     cases.push_back({"box Sphere", small_box("Sphere", res), {}, 512, 96, 12});
     cases.push_back({"veach-mis", nullptr, scene_at("scenes/veach-mis/scene.json", res), 64, 16, 6});
     cases.push_back({"veach-bidir", nullptr, scene_at("scenes/veach-bidir/scene.json", res), 512, 16, 12});
-    cases.push_back({"bathroom", nullptr, scene_at("scenes/bathroom/scene.json", res), 64, 16, 6});
+    if (!public_scene("bathroom-contemporary/bathroom.obj").empty())
+        cases.push_back({"bathroom", nullptr, scene_at("scenes/bathroom/scene.json", res), 64, 16, 6});
+    else
+        WARN(public_scene_missing("bathroom-contemporary", false));
     for (const Case& c : cases) {
         INFO(c.name);
         const BlockStats pt = grey_stats(render_runs(c.scene(), "pt", Params(), c.pt_spp, runs, 100), "color", c.block);

@@ -231,6 +231,11 @@ TEST_CASE("exr: files from other software, HALF channels and an offset data wind
 
 TEST_CASE("exr: reads the Mitsuba G-PT reference outputs", "[io]") {
     const std::string dir = std::string(GDR_SHARED_DIR) + "/reference-outputs/mitsuba-gpt-cbox-16spp/";
+    if (!std::filesystem::exists(dir + "cbox-final.exr")) {
+        WARN("skipped: needs the Mitsuba G-PT reference outputs in " << dir
+                                                                    << " (GDR_SHARED_DIR: renders of the public Mitsuba G-PT implementation, not part of the repository)");
+        return;
+    }
     Image fin;
     for (const std::string name : {"throughput", "dx", "dy", "direct", "final"}) {
         INFO(name);

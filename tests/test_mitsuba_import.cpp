@@ -19,13 +19,12 @@
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/io/mitsuba_xml.h"
+#include "public_scenes.h"
 
 using namespace gdr;
 using namespace gdr::test;
 
 namespace {
-
-const std::string kSharedMitsuba = std::string(GDR_SHARED_DIR) + "/scenes/mitsuba";
 
 const std::string kSensor = R"(
   <sensor type="perspective">
@@ -218,10 +217,7 @@ TEST_CASE("mitsuba import: a shapegroup renders where its instances place it", "
 TEST_CASE("mitsuba import: every shared Mitsuba scene loads or names what it lacks, and renders without NaN",
           "[mitsuba][shared]") {
     namespace fs = std::filesystem;
-    if (!fs::is_directory(kSharedMitsuba)) {
-        WARN("skipped: " << kSharedMitsuba << " is absent");
-        return;
-    }
+    GDR_PUBLIC_SCENE_OR_SKIP(kSharedMitsuba, "mitsuba");
     std::vector<fs::path> scenes;
     for (const auto& d : fs::directory_iterator(kSharedMitsuba))
         if (fs::exists(d.path() / "scene.xml")) scenes.push_back(d.path() / "scene.xml");

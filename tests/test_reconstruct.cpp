@@ -1,6 +1,7 @@
 // Screened Poisson reconstruction: exactness against dense double-precision
 // solves, the properties of the L2 / L1 solutions, the front end's checks,
-// and the reference implementation's own output (ALGORITHMS.md section 4).
+// and the own output of the authors' public Mitsuba implementation of
+// Kettunen et al., "Gradient-Domain Path Tracing" (2015) (docs/algorithms.md, "Screened Poisson reconstruction").
 #include <catch2/catch.hpp>
 
 #include <atomic>
@@ -478,12 +479,13 @@ TEST_CASE("gradient buffers from a frame buffer and from the reference file layo
     std::filesystem::remove_all(dir);
 }
 
-// The reference implementation's cbox buffers, or "" (with a warning) when
+// The cbox buffers of the authors' public Mitsuba implementation of G-PT, or "" (with a warning) when
 // `file` is not there to compare against.
 static std::string reference_cbox_dir(const std::string& file) {
     const std::string dir = std::string(GDR_SHARED_DIR) + "/reference-outputs/mitsuba-gpt-cbox-16spp";
     if (std::filesystem::exists(dir + "/" + file)) return dir;
-    WARN("reference outputs not found in " << dir << "; skipped");
+    WARN("skipped: needs " << file << " of the Mitsuba G-PT reference outputs in " << dir
+                           << " (GDR_SHARED_DIR: renders of the public Mitsuba G-PT implementation, not part of the repository)");
     return "";
 }
 

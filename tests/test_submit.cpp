@@ -453,7 +453,7 @@ TEST_CASE("render --continue: a complete part is left alone, a partial one is fi
 TEST_CASE("submit: parts of one seed with consecutive samples merge into one render of all of them, to float rounding",
           "[submit][cli]") {
     // 4 parts of 4 spp against one render of 16 spp, for pt and gpt. The
-    // mean layers agree to a few float roundings (the README states what
+    // mean layers agree to a few float roundings (docs/cluster.md states what
     // was measured on the 512x512 box); gpt's variance layers are sums of
     // per-sample variances of several estimators, which a merge pools as
     // one, so they agree only in expectation and are not compared.

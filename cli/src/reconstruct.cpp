@@ -16,7 +16,8 @@ namespace gdr::cli {
 
 namespace {
 
-// "cbox-primal.exr" -> "cbox" for the reference implementation's file layout; "" otherwise.
+// "cbox-primal.exr" -> "cbox" for the file layout of the authors' public Mitsuba
+// implementation of G-PT; "" otherwise.
 std::string reference_prefix(const std::string& path) {
     for (const char* suffix : {"-primal.exr", "-throughput.exr", "-dx.exr", "-dy.exr", "-direct.exr"}) {
         const std::string s(suffix);
@@ -95,7 +96,7 @@ int reconstruct(const std::vector<std::string>& args) {
     }
     check_output_path(out);
     {
-        // The input, or every file of the reference implementation's layout.
+        // The input, or every file of that implementation's layout.
         std::vector<std::string> inputs{in};
         const std::string base = reference_prefix(in).empty() ? in : reference_prefix(in);
         for (const char* suffix : {"-primal.exr", "-throughput.exr", "-dx.exr", "-dy.exr", "-direct.exr"})
@@ -112,7 +113,7 @@ int reconstruct(const std::vector<std::string>& args) {
     std::string layout;
     const std::string prefix = reference_prefix(in);
     if (!prefix.empty() || !std::filesystem::exists(in)) {
-        // The reference implementation writes one file per buffer: NAME-primal.exr, NAME-dx.exr, ...
+        // The authors' public Mitsuba implementation of G-PT writes one file per buffer: NAME-primal.exr, NAME-dx.exr, ...
         frame = load_reference_layout(prefix.empty() ? in : prefix);
         buffers = frame.buffers();
         layout = "reference layout " + (prefix.empty() ? in : prefix) + "-*.exr";

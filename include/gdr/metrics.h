@@ -29,7 +29,7 @@ struct RelMseOptions {
 };
 
 /// Relative MSE (unitless): mean over pixels and channels of (x - r)^2 / (d + eps),
-/// d = r_c^2, or (mean_c r_c)^2 with grey_denominator (ALGORITHMS.md section 8).
+/// d = r_c^2, or (mean_c r_c)^2 with grey_denominator (docs/algorithms.md, "Error metrics").
 double relmse(const Image& img, const Image& ref, const RelMseOptions& opt = {});
 
 /// Temporal (flicker) error of an image sequence against a reference sequence

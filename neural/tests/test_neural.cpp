@@ -275,16 +275,35 @@ TEST_CASE("the shipped models load and reconstruct odd-sized frames to finite im
     torch::set_num_threads(1);
     Registry<Reconstructor> reg("reconstructor");
     register_neural_reconstructor(reg);
-    // unet-v2 (shipped) has the Poisson input; unet-v1 is a format-1 file,
-    // read as a network without it.
-    for (const auto& [file, poisson] : {std::pair{"unet-v2.pt", "poisson=true"}, std::pair{"unet-v1.pt", "poisson=false"}}) {
-        INFO(file);
+    // unet-v2 (shipped) has the Poisson input and unet-v2-primal is its
+    // primal-only twin. A format-1 file (written before the Poisson input
+    // existed, without its entry) is read as a network without it: one is
+    // written here, as save_weights wrote them then.
+    TempDir dir("format1");
+    {
+        torch::manual_seed(5);
+        UNet net(UNetConfig{});
+        torch::serialize::OutputArchive ar;
+        ar.write("gdr_unet_format", torch::tensor(int64_t(1)));
+        ar.write("gdr_unet_widths", torch::tensor(std::vector<int64_t>{16, 32, 48, 64}));
+        ar.write("gdr_unet_gradients", torch::tensor(int64_t(1)));
+        net->save(ar);
+        ar.save_to(dir.file("format1.pt"));
+    }
+    const std::string models = std::string(GDR_SOURCE_DIR) + "/neural/models/";
+    struct Case {
+        std::string file, gradients, poisson;
+    };
+    for (const Case& c : {Case{models + "unet-v2.pt", "gradients=true", "poisson=true"},
+                          Case{models + "unet-v2-primal.pt", "gradients=false", "poisson=false"},
+                          Case{dir.file("format1.pt"), "gradients=true", "poisson=false"}}) {
+        INFO(c.file);
         Params p("test");
-        p.set("weights", std::string(GDR_SOURCE_DIR) + "/neural/models/" + file);
+        p.set("weights", c.file);
         p.set("threads", 1LL);
         const auto rec = reg.create("neural", p);
-        REQUIRE_THAT(rec->describe(), Catch::Contains("widths=16,32,48,64") && Catch::Contains("gradients=true") &&
-                                          Catch::Contains(poisson));
+        REQUIRE_THAT(rec->describe(), Catch::Contains("widths=16,32,48,64") && Catch::Contains(c.gradients) &&
+                                          Catch::Contains(c.poisson));
         for (auto [w, h] : {std::pair{1, 1}, std::pair{7, 13}, std::pair{21, 10}}) {
             INFO(w << "x" << h);
             const FrameBuffer fb = noisy_frame(clean_image(w, h, 30), 0.3f, 31);

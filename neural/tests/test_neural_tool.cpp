@@ -22,6 +22,7 @@
 #include "gdr/metrics.h"
 #include "gdr/neural/neural_reconstructor.h"
 #include "gdr/neural/training.h"
+#include "gdr/neural/unet.h"
 #include "tool_process.h"
 
 using namespace gdr;
@@ -172,35 +173,41 @@ TEST_CASE("gdr reconstruct --method neural and gdr render reconstruct=neural run
     // The same seed and samples as gpt.exr, so the same reconstruction.
     CHECK(std::sqrt(mse_of(rfb.get("reconstruction_neural"), img)) / mean_of(img) <= kThreadRelRms);
 
-    // Other weights in a render: reconstruct.weights (here unet-v1) gives that
+    // Other weights in a render: reconstruct.weights (here an untrained
+    // network of the shipped one's widths, written by the test) gives that
     // model's reconstruction, far from the shipped one's, and is kept, as an
     // absolute path, in the file's integrator parameters.
-    const std::string v1 = GDR_SOURCE_DIR "/neural/models/unet-v1.pt";
-    const std::string rv1 = dir("render-v1.exr");
+    const std::string other = fs::absolute(dir("untrained.pt")).string();
+    {
+        torch::manual_seed(11);
+        neural::UNet untrained(neural::UNetConfig{});
+        neural::save_weights(untrained, other);
+    }
+    const std::string rother = dir("render-other.exr");
     r = test::run_tool(GDR_TOOL,
                        {"render", scene, "--integrator", "gpt", "--spp", "8", "--seed", "3", "--resolution", "48x40",
-                        "--set", "reconstruct=neural", "--set", "reconstruct.weights=" + v1, "-o", rv1},
+                        "--set", "reconstruct=neural", "--set", "reconstruct.weights=" + other, "-o", rother},
                        dir("render3.log"));
     INFO(r.output);
     REQUIRE(r.status == 0);
-    const FrameBuffer v1fb = read_exr(rv1);
-    CHECK_THAT(v1fb.metadata().at("integrator_params"), Contains("reconstruct.weights=" + v1));
+    const FrameBuffer other_fb = read_exr(rother);
+    CHECK_THAT(other_fb.metadata().at("integrator_params"), Contains("reconstruct.weights=" + other));
     {
         Registry<Reconstructor> reg("reconstructor");
         neural::register_neural_reconstructor(reg);
         Params p("test");
-        p.set("weights", v1);
+        p.set("weights", other);
         p.set("threads", 1LL);
         const Image want = reg.create("neural", p)->reconstruct(gradient_buffers(in));
-        CHECK(std::sqrt(mse_of(v1fb.get("reconstruction_neural"), want)) / mean_of(want) <= kThreadRelRms);
-        CHECK(std::sqrt(mse_of(v1fb.get("reconstruction_neural"), img)) / mean_of(img) > 100 * kThreadRelRms);
+        CHECK(std::sqrt(mse_of(other_fb.get("reconstruction_neural"), want)) / mean_of(want) <= kThreadRelRms);
+        CHECK(std::sqrt(mse_of(other_fb.get("reconstruction_neural"), img)) / mean_of(img) > 100 * kThreadRelRms);
     }
     // A missing file, reconstruct.weights without reconstruct=neural, or the
     // old key neural_weights stops the render before it starts, naming the key.
     const std::vector<std::pair<std::vector<std::string>, std::string>> refused{
         {{"reconstruct=neural", "reconstruct.weights=" + dir("nope.pt")}, dir("nope.pt")},
-        {{"reconstruct.weights=" + v1}, "'reconstruct.weights'"},
-        {{"reconstruct=neural", "neural_weights=" + v1}, "reconstruct.weights"}};
+        {{"reconstruct.weights=" + other}, "'reconstruct.weights'"},
+        {{"reconstruct=neural", "neural_weights=" + other}, "reconstruct.weights"}};
     for (const auto& [sets, named] : refused) {
         std::vector<std::string> args{"render", scene, "--integrator", "gpt", "--spp", "8", "--resolution", "48x40"};
         for (const std::string& kv : sets) args.push_back("--set"), args.push_back(kv);

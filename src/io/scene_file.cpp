@@ -6,6 +6,7 @@
 #include <climits>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -42,6 +43,23 @@ using json = nlohmann::json;
 namespace {
 
 [[noreturn]] void fail(const std::string& file, const std::string& what) { throw InputError(file + ": " + what); }
+
+constexpr std::string_view kScenesPrefix = "$GDR_SCENES/";
+
+// A path named in the scene file `file`: relative to that file, or, when it
+// starts with "$GDR_SCENES/", inside the folder of the larger public scenes
+// (scenes_dir()). Such a file that is absent is an error saying how to
+// provide the folder, since it is not part of the repository.
+std::string resolve_path(const std::string& file, const std::string& rel, const std::string& key) {
+    if (rel.rfind(kScenesPrefix, 0) != 0) return (fs::path(file).parent_path() / rel).string();
+    const std::string dir = scenes_dir();
+    const std::string full = (fs::path(dir) / rel.substr(kScenesPrefix.size())).string();
+    if (!fs::exists(full))
+        fail(file, key + ": " + rel + " (" + full + "): file not found. $GDR_SCENES is the folder of the larger "
+                   "public scenes, " + dir + " here; set the environment variable GDR_SCENES (or the CMake "
+                   "setting GDR_SCENES) to where they are; docs/scenes.md says where to download each");
+    return full;
+}
 
 void check_keys(const std::string& file, const std::string& where, const json& obj, const std::set<std::string>& allowed) {
     if (!obj.is_object()) fail(file, where + " must be an object");
@@ -174,7 +192,7 @@ CameraDesc parse_camera(const std::string& file, const json& j, std::vector<std:
     CameraDesc c;
     json src = j;
     if (j.is_object() && j.contains("file")) {
-        const std::string cam = (fs::path(file).parent_path() / get_string(file, j["file"], "camera.file")).string();
+        const std::string cam = resolve_path(file, get_string(file, j["file"], "camera.file"), "camera.file");
         json base;
         try {
             base = parse_json_file(cam);
@@ -424,7 +442,7 @@ std::shared_ptr<Environment> parse_environment(const std::string& file, const js
     if (type != "envmap") fail(file, "'environment.type' must be \"constant\" or \"envmap\", got '" + type + "'");
     check_keys(file, "environment (envmap)", j, {"type", "file", "scale", "transform"});
     if (!j.contains("file") || !j["file"].is_string()) fail(file, "an envmap environment needs 'environment.file'");
-    const std::string map = (fs::path(file).parent_path() / j["file"].get<std::string>()).string();
+    const std::string map = resolve_path(file, j["file"].get<std::string>(), "environment.file");
     const Mat4 xf = j.contains("transform") ? parse_transform(file, j["transform"]) : Mat4(1.f);
     inputs.push_back(map);
     try {
@@ -522,7 +540,7 @@ MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Overr
     if (j.contains("metal")) m.metal = get_bool(file, j["metal"], where + ".metal");
     if (j.contains("map_kd")) {
         const std::string t = get_string(file, j["map_kd"], where + ".map_kd");
-        m.map_kd = t.empty() ? "" : (fs::path(file).parent_path() / t).string();
+        m.map_kd = t.empty() ? "" : resolve_path(file, t, where + ".map_kd");
     }
     return m;
 }
@@ -543,6 +561,29 @@ void check_material_colours(const MaterialDesc& d) {
     if (bad(d.ks, 1.f)) throw ParameterError("Ks must lie in [0, 1] per channel, got " + colour_text(d.ks));
     if (bad(d.ke, std::numeric_limits<float>::max()))
         throw ParameterError("Ke must be finite and >= 0 per channel, got " + colour_text(d.ke));
+}
+
+// A material library for an OBJ that names none, made of the scene file's
+// overrides: every `usemtl` name of `obj` (its text) that `overrides` holds
+// starts as grey diffuse (Kd 0.5, as a face without a material) and then takes
+// the override's keys. "" if the OBJ uses none of them. This lets a first
+// scene be one OBJ and one scene file, without an MTL written beside it.
+std::string library_of_overrides(const std::string& obj, const std::map<std::string, Override>& overrides) {
+    std::string lib;
+    std::set<std::string> named;
+    std::istringstream in(obj);
+    for (std::string line; std::getline(in, line);) {
+        const size_t b = line.find_first_not_of(" \t");
+        if (b == std::string::npos || line.compare(b, 6, "usemtl") != 0 || b + 6 >= line.size() ||
+            (line[b + 6] != ' ' && line[b + 6] != '\t'))
+            continue;
+        const size_t s = line.find_first_not_of(" \t", b + 6);
+        const size_t e = line.find_last_not_of(" \t\r");
+        if (s == std::string::npos || e < s) continue;
+        const std::string name = line.substr(s, e - s + 1);
+        if (overrides.count(name) && named.insert(name).second) lib += "newmtl " + name + "\nKd 0.5 0.5 0.5\nillum 2\n";
+    }
+    return lib;
 }
 
 }  // namespace
@@ -642,15 +683,18 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
             if (const std::string why = not_a_file(lib); !why.empty()) throw InputError(path + ": mtllib " + lib + why);
         check_material_lines(lib);
     }
+    // An OBJ without a library of its own takes its materials from the scene file's overrides.
+    const std::string from_overrides =
+        mtl.empty() && libraries.empty() && overrides ? library_of_overrides(read_file_text(path), *overrides) : "";
     // With a library of its own the OBJ is parsed from memory: tinyobjloader
     // then reads every `mtllib` from the given text instead of a file.
     bool parsed;
-    if (mtl.empty()) {
+    if (mtl.empty() && from_overrides.empty()) {
         parsed = reader.ParseFromFile(path, cfg);
     } else {
         std::string obj = read_file_text(path);
         if (obj.find("mtllib") == std::string::npos) obj = "mtllib given\n" + obj;  // an OBJ without one gets it too
-        parsed = reader.ParseFromString(obj, read_file_text(mtl), cfg);
+        parsed = reader.ParseFromString(obj, from_overrides.empty() ? read_file_text(mtl) : from_overrides, cfg);
     }
     if (!parsed) {
         std::string e = reader.Error();
@@ -661,7 +705,11 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     // missing material file would silently turn every surface grey, so it is an error.
     const std::string warn = reader.Warning();
     if (warn.find("not found") != std::string::npos && warn.find(".mtl") != std::string::npos)
-        throw InputError(path + ": " + warn.substr(0, warn.find('\n')));
+        throw InputError(path + ": " + warn.substr(0, warn.find('\n')) +
+                         (mtl.empty() && libraries.empty()
+                              ? " (the OBJ names no material library: give each material it uses in the scene "
+                                "file's \"materials\", or a library in the mesh's \"mtl\")"
+                              : ""));
     if (inputs) {
         inputs->push_back(path);
         // A library named but absent is reported above; of several, the reader takes the first it finds.
@@ -805,6 +853,11 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
     }
 }
 
+std::string scenes_dir() {
+    if (const char* e = std::getenv("GDR_SCENES"); e && *e) return e;
+    return GDR_SCENES_DEFAULT;
+}
+
 void load_obj(const std::string& path, const Mat4& transform, TriangleMesh& mesh, std::vector<Material>& materials) {
     load_obj_impl(path, transform, mesh, materials, nullptr, "", nullptr);
 }
@@ -916,7 +969,7 @@ static SceneFile load_scene_json(json j, const std::string& path, const fs::path
         const std::string where = "meshes[" + std::to_string(tracks.size()) + "]";
         std::string file;
         if (m.is_string()) {
-            file = (dir / m.get<std::string>()).string();
+            file = resolve_path(path, m.get<std::string>(), where);
             load_obj_impl(file, Mat4(1.f), mesh, materials, &overrides, path, &used, "", &inputs);
         } else if (m.is_object() && m.contains("vertices")) {
             check_keys(path, where, m, {"vertices", "triangles", "material", "transform"});
@@ -932,8 +985,9 @@ static SceneFile load_scene_json(json j, const std::string& path, const fs::path
             if (!m.contains("file") || !m["file"].is_string()) fail(path, "every mesh needs a 'file'");
             if (m.contains("mtl") && !m["mtl"].is_string()) fail(path, "'meshes[].mtl' must be a string");
             const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
-            const std::string mtl = m.contains("mtl") ? (dir / m["mtl"].get<std::string>()).string() : std::string();
-            file = (dir / m["file"].get<std::string>()).string();
+            const std::string mtl = m.contains("mtl") ? resolve_path(path, m["mtl"].get<std::string>(), where + ".mtl")
+                                                      : std::string();
+            file = resolve_path(path, m["file"].get<std::string>(), where + ".file");
             load_obj_impl(file, xf, mesh, materials, &overrides, path, &used, mtl, &inputs);
         }
         if (tracks.size() == sf.meshes.size()) tracks.emplace_back();

@@ -1,5 +1,5 @@
 // Screened Poisson solvers: exact L2 through the DCT, weighted (P)CG, and
-// IRLS for L1 (see gdr/reconstruct/poisson.h and ALGORITHMS.md section 4).
+// IRLS for L1 (see gdr/reconstruct/poisson.h and docs/algorithms.md, "Screened Poisson reconstruction").
 //
 // Internally images are planar (one plane per channel) so that the FFTs and
 // the stencil loops run over contiguous rows. Storage is float; every sum

@@ -46,7 +46,7 @@ private:
 class PoissonL1 final : public Reconstructor {
 public:
     explicit PoissonL1(const Params& p) : alpha_(read_alpha(p)) {
-        // "reference" is the reference implementation's own L1 preset ("L1D":
+        // "reference" is the own L1 preset of the authors' public Mitsuba implementation of G-PT ("L1D":
         // 20 IRLS steps of 50 plain CG iterations from the primal), for
         // reproducing its output; "fast" the defaults of L1Options.
         preset_ = p.get_choice("preset", "fast", {"fast", "reference"});

@@ -2,7 +2,7 @@
 // from a pilot render, after Manzi, Kettunen, Durand, Zwicker and Lehtinen,
 // "Temporal Gradient-Domain Path Tracing" (2016), whose finding is that a
 // screened Poisson reconstruction's error follows the variance of the
-// gradients, not of the colours (ALGORITHMS.md section 6).
+// gradients, not of the colours (docs/algorithms.md, "Temporal").
 #pragma once
 
 #include <string>

@@ -4,7 +4,7 @@
 // from a camera subpath and a light subpath is shifted to the four
 // neighbouring pixels, the light subpath shared and the camera side mapped by
 // a registered shift, and the balance heuristic over the strategies of both
-// the base and its offset weighs the differences (ALGORITHMS.md section 5).
+// the base and its offset weighs the differences (docs/algorithms.md, "Bidirectional").
 #pragma once
 
 #include "gdr/integrators/integrator.h"

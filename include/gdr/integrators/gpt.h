@@ -1,4 +1,5 @@
-// Gradient-domain path tracing (PI): the estimator of one base/offset pair.
+// Gradient-domain path tracing (Kettunen et al., "Gradient-Domain Path Tracing" (2015)): the estimator of one
+// base/offset pair.
 #pragma once
 
 #include <memory>

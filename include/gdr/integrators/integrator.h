@@ -19,7 +19,7 @@ namespace gdr {
 /// How an integrator that shares random numbers between consecutive frames of
 /// an animation (tgpt) keys its samplers in one frame: temporal seed sharing
 /// of Manzi, Kettunen, Durand, Zwicker and Lehtinen, "Temporal
-/// Gradient-Domain Path Tracing" (2016), ALGORITHMS.md section 6.
+/// Gradient-Domain Path Tracing" (2016), docs/algorithms.md, "Temporal".
 struct FrameSampling {
     uint64_t next_seed = 0;  ///< The next frame's own sampler seed (its RenderSettings::seed).
     /// 2 channels per pixel, or empty: the pixel (column, row) of the previous

@@ -1,4 +1,4 @@
-// Temporal gradient-domain path tracing (PIII): Manzi, Kettunen, Durand,
+// Temporal gradient-domain path tracing: Manzi, Kettunen, Durand,
 // Zwicker and Lehtinen, "Temporal Gradient-Domain Path Tracing" (2016).
 #pragma once
 

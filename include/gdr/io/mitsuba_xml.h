@@ -1,6 +1,6 @@
 // Mitsuba scene files (XML of Mitsuba 0.6 and 3.x) as gdr scenes. Names are
 // accepted in both spellings (0.6's camelCase, 3.x's snake_case). What is
-// supported, and what is approximated, is listed in the README's "Mitsuba
+// supported, and what is approximated, is listed in docs/scenes.md, "Mitsuba
 // scenes" section: shapes obj, ply, rectangle, cube, sphere and disk
 // (triangulated); the BSDFs diffuse, roughdiffuse, conductor, roughconductor,
 // dielectric, thindielectric, roughdielectric, plastic, roughplastic,

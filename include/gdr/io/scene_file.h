@@ -102,6 +102,11 @@ SceneFile load_scene_file(const std::string& path);
 /// defines the material ("type" and its values over MTL defaults); its faces
 /// are flat. content_hash covers the text and every file it names.
 SceneFile load_scene_text(const std::string& text, const std::string& name);
+/// The folder of the larger public scenes (the bathroom, the Mitsuba test
+/// scenes), which a JSON scene file names as "$GDR_SCENES/...": the environment
+/// variable GDR_SCENES where it is set and not empty, else the build's CMake
+/// setting GDR_SCENES (by default ../shared/scenes beside the source tree).
+std::string scenes_dir();
 
 /// FNV-1a 64 hash, as 16 lowercase hex digits, of the files `inputs` in the given
 /// order: each one's path relative to the directory of `scene_path`, its size

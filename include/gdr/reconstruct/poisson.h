@@ -1,4 +1,4 @@
-// Screened Poisson reconstruction core (ALGORITHMS.md section 4), usable on
+// Screened Poisson reconstruction core (docs/algorithms.md, "Screened Poisson reconstruction"), usable on
 // its own from any renderer: plain interleaved float buffers in, same out.
 //
 //   I = argmin_x  sum_p rho(alpha (x_p - c_p)) + sum rho(Dx x - gx) + sum rho(Dy x - gy)
@@ -16,7 +16,9 @@
 // The DCT is computed through real FFTs (FFTW single precision) because
 // FFTW's own r2r DCTs are about twice as slow.
 //
-// L1 is IRLS with the reference's weights and eps schedule, warm-started from
+// L1 is IRLS with the weights and eps schedule of the authors' public
+// Mitsuba implementation of Kettunen et al., "Gradient-Domain Path Tracing" (2015) ("the reference" below),
+// warm-started from
 // the exact L2 solution. Each reweighted least-squares step is solved by a
 // few conjugate-gradient iterations preconditioned with an aggregation
 // multigrid V-cycle rather than with the DCT solve: the IRLS weights vary by

@@ -3,12 +3,13 @@
 // on plain float images, so a renderer that knows nothing else of gdr can
 // fill three Images and call reconstruct() (examples/embed_reconstruct).
 //
-// Buffer conventions (ALGORITHMS.md sections 1 and 4): row 0 at the top,
+// Buffer conventions (docs/algorithms.md, "What is estimated: the gradient
+// layout" and "Screened Poisson reconstruction"): row 0 at the top,
 // dx(x,y) = I(x+1,y) - I(x,y) stored at the left pixel, dy(x,y) =
 // I(x,y+1) - I(x,y) stored at the top pixel; the last column of dx and the
 // last row of dy are unused. Directly visible emitters belong in `direct`,
 // not in primal / dx / dy: they are added after reconstruction, as the
-// reference implementation does.
+// authors' public Mitsuba implementation of Kettunen et al., "Gradient-Domain Path Tracing" (2015) does.
 #pragma once
 
 #include <memory>
@@ -100,7 +101,8 @@ void register_weighted_reconstructors(Registry<Reconstructor>& r);
 /// Adds "poisson-l2" (exact DCT solve; parameter alpha) and "poisson-l1"
 /// (IRLS with multigrid-preconditioned CG; alpha, iterations, cg_iterations,
 /// tolerance as in L1Options, and preset = fast (default) | reference, the
-/// latter running the reference implementation's own slow "L1D" algorithm).
+/// latter running the slow "L1D" algorithm of the authors' public Mitsuba
+/// implementation of Kettunen et al., "Gradient-Domain Path Tracing" (2015)).
 void register_poisson_reconstructors(Registry<Reconstructor>& r);
 
 /// One-call convenience: creates `method` from the registry with `params`

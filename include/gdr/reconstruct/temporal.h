@@ -1,7 +1,7 @@
 // Spatio-temporal screened Poisson reconstruction of temporal gradient-domain
 // path tracing: Manzi, Kettunen, Durand, Zwicker and Lehtinen, "Temporal
-// Gradient-Domain Path Tracing" (ACM TOG 35(6), 2016); ALGORITHMS.md
-// sections 4 and 6.
+// Gradient-Domain Path Tracing" (ACM TOG 35(6), 2016); docs/algorithms.md,
+// "Screened Poisson reconstruction" and "Temporal".
 //
 // A window of F frames is solved jointly:
 //

@@ -114,7 +114,7 @@ enum class VarianceGuard {
 
 /// Settings of poisson_variance_weighted; defaults as registered for
 /// "poisson-weighted", chosen by bench_equal_time on the bundled scenes
-/// (README, "Variance-weighted reconstruction"): among the variants measured,
+/// (docs/results.md, "Variance-weighted reconstruction"): among the variants measured,
 /// L1 with r = 2 and a lowpass tie of R = 24 had the lowest relMSE on
 /// average; R = 8 spread fireflies of veach-mis's primal visibly, the global
 /// mean tie lost at 2 spp on the Cornell box, r = 0 and r = 3 were worse.

@@ -123,7 +123,7 @@ MotionLayers motion_layers(const AnimatedScene& anim, const Scene& scene, int fr
 void add_motion_layers(FrameBuffer& fb, const AnimatedScene& anim, const Scene& scene, int frame);
 
 /// Where frame `frame`'s pixels were in frame `frame` - 1, as temporal
-/// seed sharing uses it (FrameSampling::replay; ALGORITHMS.md section 6):
+/// seed sharing uses it (FrameSampling::replay; docs/algorithms.md, "Temporal"):
 /// 2 channels per pixel, the pixel q = p + round(motion_bwd(p)) of the
 /// previous frame (column, row), kept only where the round trip closes
 /// (q's forward motion, rounded, lands back on p, so that q's surface is the

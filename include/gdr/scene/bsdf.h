@@ -192,7 +192,7 @@ struct MaterialDesc {
     std::string map_kd;            ///< Absolute path of the diffuse texture, or empty.
 };
 
-/// The BSDF for an MTL material, by the conventions of shared/scenes/README.md:
+/// The BSDF for an MTL material, by the conventions of docs/scenes.md ("MTL rules"):
 /// illum 5 mirror, illum 7 dielectric (rough if Pr > 0), Pm 1 rough conductor,
 /// Kd + Ks plastic, Kd only Lambertian.
 std::shared_ptr<Bsdf> bsdf_from_mtl(const MaterialDesc& m);

@@ -1,4 +1,4 @@
-// The shift of gradient-domain path tracing (PI): reconnect as soon as x_k,
+// The shift of Kettunen et al., "Gradient-Domain Path Tracing" (2015): reconnect as soon as x_k,
 // y_k and x_{k+1} are connectable; otherwise copy the base's half-vector
 // through the vertex (glossy and specular, reflection and refraction). When
 // only x_{k+1} prevented the reconnection, the shift is undefined if the

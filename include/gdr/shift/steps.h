@@ -27,13 +27,13 @@ inline bool can_reconnect(const ShiftStepInput& in) {
     return base_has_next(in) && base_connectable(in, in.k) && offset_connectable(in) && base_connectable(in, in.k + 1);
 }
 
-/// Reconnection y_k -> x_{k+1} (PI): fails if the segment is blocked, arrives from
+/// Reconnection y_k -> x_{k+1} (Kettunen et al., "Gradient-Domain Path Tracing" (2015)): fails if the segment is blocked, arrives from
 /// the other side of x_{k+1}'s surface, or carries no throughput. With
 /// in.defer_visibility the blocking test is left to the caller.
 /// |J| = |cos_y| ||x_k - x_{k+1}||^2 / (|cos_x| ||y_k - x_{k+1}||^2), cosines at x_{k+1}.
 ShiftStep reconnect(const ShiftStepInput& in);
 
-/// Half-vector copy (PI): the offset keeps the base's half-vector in its local
+/// Half-vector copy (Kettunen et al., "Gradient-Domain Path Tracing" (2015)): the offset keeps the base's half-vector in its local
 /// frame (reflection, or generalised half-vector for refraction); delta lobes
 /// map to delta lobes with J = 1. Fails on mismatched lobes, total internal
 /// reflection, or a direction on the wrong side.

@@ -1,4 +1,4 @@
-// MTL material -> BSDF, by the conventions of shared/scenes/README.md, and
+// MTL material -> BSDF, by the conventions of docs/scenes.md ("MTL rules"), and
 // explicit BSDF types chosen by name (scene-file overrides).
 #include <array>
 

@@ -7,7 +7,7 @@
 //   L1(T(p), T(t)) + relmse_weight * mean((p - t)^2 / (t^2 + 0.01))
 // with p the network's radiance, t the target's and T(v) = v / (1 + v) per
 // channel (Reinhard's tone map), so the L1 term weighs dark and bright
-// regions alike and the relMSE term (ALGORITHMS.md section 8, thesis errata
+// regions alike and the relMSE term (docs/algorithms.md, "Error metrics", thesis errata
 // form) is the figure reported. The publication's E-LPIPS term needs
 // pretrained VGG weights that cannot be obtained on this machine; it is left
 // out. Gradients are clipped to norm 1: a firefly's relMSE gradient is
@@ -51,7 +51,7 @@ struct DatasetOptions {
     /// 1/3 to 3), from a stream of its own, so its camera is the unvaried
     /// view's; even-numbered views show the scenes as they are.
     bool vary = false;
-    /// OBJ files (e.g. ../shared/scenes/meshes) to place into the scenes:
+    /// OBJ files (e.g. scenes/meshes, or meshes in GDR_SCENES) to place into the scenes:
     /// with any given, views whose index is 2 or 3 mod 4 get one of them
     /// (in turn) with a random material, standing on a surface that faces
     /// up in the view (found by camera rays through random pixels; if 32 find
@@ -110,8 +110,8 @@ struct TrainOptions {
 /// The loss of the file comment for predictions and targets [N, 3, H, W] (radiance).
 torch::Tensor training_loss(const torch::Tensor& prediction, const torch::Tensor& target, double relmse_weight);
 
-/// Mean relMSE (eps 0.01, averaged over channels and pixels; ALGORITHMS.md
-/// section 8) of `x` against reference `r`, both radiance of one shape.
+/// Mean relMSE (eps 0.01, averaged over channels and pixels; docs/algorithms.md,
+/// "Error metrics") of `x` against reference `r`, both radiance of one shape.
 double rel_mse(const torch::Tensor& x, const torch::Tensor& r);
 
 /// A training run: network, optimiser, step count and loss history.

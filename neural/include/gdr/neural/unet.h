@@ -4,7 +4,7 @@
 // primal colour, the signed-log gradients and the auxiliary buffers (albedo,
 // normal, depth) and outputs the log-encoded image.
 //
-// Sized for a CPU, not the publication's GPU (ALGORITHMS.md section 7): the
+// Sized for a CPU, not the publication's GPU (docs/algorithms.md, "Neural reconstruction"): the
 // publication's dense blocks (4.4 M parameters) take 55 s per 1280x720 frame
 // on two cores here and, at equal parameters, dense concatenations run 5-7x
 // slower than plain convolutions on this CPU. So each level is two plain 3x3
