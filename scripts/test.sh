@@ -31,12 +31,21 @@ skipped() {
         echo "test.sh: not root, so the Slurm test (cli.slurm_array_job_renders_merges_and_resumes) is skipped: it starts slurmd"
 }
 skipped
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+# Through ccache where it is installed (scripts/install-deps.sh installs it),
+# with paths made relative to the repository: the clone that
+# scripts/clone-check.sh builds then reuses this build's objects instead of
+# compiling the library a second time.
+launcher=()
+if command -v ccache > /dev/null; then
+    launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+    export CCACHE_BASEDIR=$PWD CCACHE_NOHASHDIR=1
+fi
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release "${launcher[@]}"
 cmake --build build -j2
 ctest --test-dir build --output-on-failure
 # A clone with nothing beside it renders every scene in scenes/ and skips the
 # tests of the larger public scenes (GDR_SCENES).
 bash scripts/clone-check.sh build
-cmake -S . -B build-scalar -DCMAKE_BUILD_TYPE=Release -DGDR_SIMD=OFF -DGDR_BUILD_BENCHMARKS=OFF -DGDR_BUILD_NEURAL=OFF
+cmake -S . -B build-scalar -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" -DGDR_SIMD=OFF -DGDR_BUILD_BENCHMARKS=OFF -DGDR_BUILD_NEURAL=OFF
 cmake --build build-scalar -j2
 ctest --test-dir build-scalar --output-on-failure
