@@ -795,7 +795,7 @@ TEST_CASE("bsdf chi2: phong", "[bsdf][statistical][phong]") {
 TEST_CASE("bsdf chi2: phong - the test detects a lobe pdf normalised like the value", "[bsdf][statistical][phong]") {
     // Deliberately wrong density: the specular lobe's pdf normalised by
     // (n + 2) / (2 pi), the value's constant, instead of (n + 1) / (2 pi).
-    // Measured when written: fails with p ~ 1e-180 (chi2 ~ 1000 on ~60 dof) at n = 10.
+    // Measured: the pdf integrates to 1.0909, chi2 = 1994 on 550 dof, p = 1.8e-162.
     const float n = 10.f;
     const auto b = phong(Color(0.f), Color(0.9f), n);
     const Vec3 wo = dir(20.f);
@@ -970,8 +970,8 @@ TEST_CASE("bsdf chi2: Beckmann conductor, dielectric and plastic", "[bsdf][stati
 
 TEST_CASE("bsdf chi2: the test detects Beckmann samples with GGX's density", "[bsdf][statistical][beckmann]") {
     // Deliberately wrong density: a Beckmann conductor's samples tested
-    // against the GGX conductor's pdf of the same alpha. Measured when
-    // written: fails with p < 1e-300 at alpha 0.3, theta_o 30.
+    // against the GGX conductor's pdf of the same alpha. Measured: chi2 =
+    // 54706 on 584 dof, p = 0 in double precision, at alpha 0.3, theta_o 30.
     const auto b = make_rough_conductor(Color(1.f), 0.3f, MicrofacetType::Beckmann);
     const auto g = make_rough_conductor(Color(1.f), 0.3f);
     const Vec3 wo = dir(30.f);
@@ -1086,8 +1086,8 @@ TEST_CASE("bsdf chi2: ward variants", "[bsdf][statistical][ward]") {
 
 TEST_CASE("bsdf chi2: the test detects a Ward pdf without cos(theta_h)", "[bsdf][statistical][ward]") {
     // Deliberately wrong density: the half vector's density taken as D(h)
-    // instead of D(h) cos(theta_h). Measured when written: p < 1e-100 at alpha
-    // 0.5, theta_o 40 (glossy lobe only).
+    // instead of D(h) cos(theta_h). Measured: chi2 = 35253 on 557 dof,
+    // p = 0 in double precision, at alpha 0.5, theta_o 40 (glossy lobe only).
     const float alpha = 0.5f;
     const auto b = make_ward(make_constant_texture(Color(0.f)), make_constant_texture(Color(0.8f)), alpha,
                              WardVariant::Balanced);
