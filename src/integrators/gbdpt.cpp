@@ -94,6 +94,13 @@ Color join(const Vertex& q, const Vertex& p) {
     const Vec3 w = d / std::sqrt(dist2);  // light side -> camera side
     Color fq(1.f);
     float cos_q;
+    if (q.delta_light) {
+        // A point or spot light: its intensity towards p over its selection
+        // probability, no cosine (delta_light.h).
+        const Color fp = vertex_f(p, -w, TransportMode::Radiance);
+        return q.delta_light->intensity_towards(w) * float(1.0 / q.pdf_fwd) * fp * p.beta *
+               (abs_cos_shading(p, w) / dist2);
+    }
     if (q.type == VertexType::Light) {
         cos_q = glm::dot(q.si.ng, w);
         if (!(cos_q > 0.f)) return Color(0.f);
@@ -156,10 +163,22 @@ protected:
         if (scene.environment())
             throw ParameterError("gbdpt: scenes with an environment light are not supported (a vertex at infinity "
                                  "cannot be reconnected to); render them with bdpt or gpt");
+        // Point and spot lights: no camera walk hits one, so s = 0 cannot
+        // keep a strategy for their paths; where every surface is
+        // connectable, s = 1 always can. With a mirror, glass or a surface
+        // below `drop`, a path such as light - mirror - wall - camera would
+        // keep none (only light tracing samples it, and its shift needs the
+        // mirror connectable): refused rather than rendered darker.
+        for (const DeltaLight& l : scene.delta_lights())
+            if (l.kind == DeltaLight::Kind::Directional)
+                throw ParameterError("gbdpt: scenes with a directional light are not supported (a vertex at infinity "
+                                     "cannot be reconnected to); render them with bdpt or gpt");
         if (!scene.delta_lights().empty())
-            throw ParameterError("gbdpt: scenes with point, spot or directional lights are not supported yet (no camera "
-                                 "walk hits such a light, so the always-kept s = 0 strategy no longer keeps one for "
-                                 "every path); render them with bdpt or gpt");
+            for (const Material& m : scene.materials())
+                if (!m.black && (m.pure_delta || !(m.min_roughness > drop_)))
+                    throw ParameterError("gbdpt: with point or spot lights every surface must be connectable (rougher "
+                                         "than drop = " + fmt::format("{}", drop_) + "), and material '" + m.name +
+                                         "' is not: paths through it to the light could be lost; render with bdpt or gpt");
     }
 
     std::vector<SlotSpec> slots() const override {
@@ -319,10 +338,13 @@ private:
         const Vertex* lend = nullptr;
         if (s == 1) {
             const Vertex& pt = cam.v[t - 1];
-            const LightSample ls =
-                scene.sample_emitter_point(pt.u_light, sampler.at2(dims::vertex(t - 1) + dims::kLightPoint));
+            const Vec2 u = sampler.at2(dims::vertex(t - 1) + dims::kLightPoint);
+            // A point or spot light faces the vertex it lights (LightSample's convention).
+            const LightSample ls = scene.picks_delta(pt.u_light) ? scene.sample_light(pt.si.p, pt.u_light, u)
+                                                                 : scene.sample_emitter_point(pt.u_light, u);
             if (!(ls.pdf_a > 0.f) || ls.infinite) return;
             sampled.type = VertexType::Light;
+            sampled.delta_light = ls.delta_light;
             sampled.si.p = ls.p, sampled.si.ng = ls.n, sampled.si.frame = Frame(ls.n), sampled.si.prim = ls.prim;
             sampled.le = ls.radiance;
             sampled.pdf_fwd = ls.pdf_a;

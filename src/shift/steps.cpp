@@ -20,7 +20,9 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     const double lx2 = glm::dot(dx, dx), ly2 = glm::dot(dy, dy);
     if (!(lx2 > 0.0) || !(ly2 > 0.0)) return s;
     const double lx = std::sqrt(lx2), ly = std::sqrt(ly2);
-    const double dot_x = glm::dot(dx, ng), dot_y = glm::dot(dy, ng);  // cosines at `next` times the distances
+    // At a point or spot light the cosine is 1 from everywhere (LightSample's convention).
+    const bool point = next.delta_light != nullptr;
+    const double dot_x = point ? lx : glm::dot(dx, ng), dot_y = point ? ly : glm::dot(dy, ng);  // cosines at `next` times the distances
     // Arriving from the other side of the surface would be another kind of path.
     if (!(dot_x * dot_y > 0.0)) return s;
     // The Jacobian |cos_y| lx^2 / (|cos_x| ly^2) = |dot_y| lx^3 / (|dot_x| ly^3)
@@ -34,7 +36,7 @@ ShiftStep reconnect(const ShiftStepInput& in) {
     if (is_black(fe.f)) return s;
     if (in.defer_visibility)
         s.visibility_deferred = true;
-    else if (!in.scene.visible(y.p, y.ng, next.si.p, next.si.ng))
+    else if (!in.scene.visible(y.p, y.ng, next.si.p, point ? Vec3(0.f) : next.si.ng))
         return s;
     s.kind = ShiftStep::Kind::Reconnect;
     s.wi = wi;

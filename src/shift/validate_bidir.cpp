@@ -94,7 +94,8 @@ ShiftReport validate_bidirectional_shift(const Scene& scene, const Shift& shift,
     require_no_environment(scene, "the bidirectional shift validator (check-shift --integrator gbdpt)");
     if (!scene.delta_lights().empty())
         throw ParameterError("the bidirectional shift validator (check-shift --integrator gbdpt): scenes with point, spot "
-                             "or directional lights are not supported, as gbdpt does not render them");
+                             "or directional lights are not supported yet (its finite differences move a light point on "
+                             "an emitter's surface); check-shift --integrator gpt validates their light connections");
     const int W = scene.camera().width(), H = scene.camera().height();
     if (W < 3) throw ParameterError("validate_bidirectional_shift: the image must be at least 3 pixels wide");
     if (!scene.has_lights()) throw ParameterError("validate_bidirectional_shift: the scene has no emitter");

@@ -216,7 +216,9 @@ public:
     /// Samples a point on an emitter by power then area (u_sel picks the
     /// triangle, u the point), or with the environment's share of the power
     /// (see environment_selection()) a direction to the environment (an
-    /// infinite LightSample, u picking the direction).
+    /// infinite LightSample, u picking the direction), or with the delta
+    /// lights' share (delta_selection()) one of them by its power (a delta
+    /// LightSample, u unused).
     LightSample sample_light(const Vec3& ref, float u_sel, const Vec2& u) const;
     /// The point sample_light() would pick with the same numbers, with the
     /// radiance its front side emits: where a light subpath starts.
