@@ -128,6 +128,9 @@ TEST_CASE("sky: Mitsuba's sunsky puts the sun at sunDirection, in world space", 
         <vector name="sunDirection" x="0.6" y="0.5" z="-0.62"/><float name="sunRadiusScale" value="4"/></emitter>)"));
     const Environment& env = *sf.scene->environment();
     const float at_sun = luminance(env.eval(sun));
+    // Wrong variant: taking sunDirection to the emitter's frame by to_world
+    // instead of its inverse left 0.058 at the sun and put 894 (the disk) 180
+    // degrees away about y.
     for (const Vec3& off : {Vec3(0.f, 1.f, 0.f), Vec3(-sun.x, sun.y, -sun.z), Vec3(sun.z, sun.y, -sun.x)}) {
         CAPTURE(at_sun, luminance(env.eval(glm::normalize(off))));
         CHECK(at_sun > 100.f * luminance(env.eval(glm::normalize(off))));
