@@ -80,6 +80,31 @@ constexpr double kSolar[38] = {16559.0, 16233.7, 21127.5, 25888.2, 25829.1, 2423
                                23685.3, 23212.1, 22827.7, 22339.8, 21970.2, 21526.7, 21097.9, 20728.3,
                                20240.4, 19870.8, 19427.2, 19072.4, 18628.9, 18259.2};
 
+// Absorption coefficients (1/cm) of ozone and of water vapour against
+// wavelength (nm), from M. Iqbal, "An Introduction to Solar Radiation" (1983),
+// as Preetham, Shirley and Smits use them.
+constexpr double kOzoneL[64] = {300, 305, 310, 315, 320, 325, 330, 335, 340, 345, 350, 355, 445, 450, 455, 460,
+                                465, 470, 475, 480, 485, 490, 495, 500, 505, 510, 515, 520, 525, 530, 535, 540,
+                                545, 550, 555, 560, 565, 570, 575, 580, 585, 590, 595, 600, 605, 610, 620, 630,
+                                640, 650, 660, 670, 680, 690, 700, 710, 720, 730, 740, 750, 760, 770, 780, 790};
+constexpr double kOzoneK[64] = {10.0, 4.8,  2.7,  1.35, .8,   .380, .160, .075, .04,  .019, .007, .0,   .003,
+                                .003, .004, .006, .008, .009, .012, .014, .017, .021, .025, .03,  .035, .04,
+                                .045, .048, .057, .063, .07,  .075, .08,  .085, .095, .103, .110, .12,  .122,
+                                .12,  .118, .115, .12,  .125, .130, .12,  .105, .09,  .079, .067, .057, .048,
+                                .036, .028, .023, .018, .014, .011, .010, .009, .007, .004, .0,   .0};
+constexpr double kWaterL[13] = {689, 690, 700, 710, 720, 730, 740, 750, 760, 770, 780, 790, 800};
+constexpr double kWaterK[13] = {0, 0.160e-1, 0.240e-1, 0.125e-1, 0.100e+1, 0.870, 0.610e-1,
+                                0.100e-2, 0.100e-4, 0.100e-4, 0.600e-3, 0.175e-1, 0.360e-1};
+
+// Linear interpolation in a table, zero outside it.
+template <int N>
+double table(const double (&x)[N], const double (&y)[N], double l) {
+    if (l < x[0] || l > x[N - 1]) return 0.0;
+    int i = 0;
+    while (i + 2 < N && l > x[i + 1]) ++i;
+    return y[i] + (l - x[i]) / (x[i + 1] - x[i]) * (y[i + 1] - y[i]);
+}
+
 // Piecewise Gaussian of the analytic CIE fit.
 double g(double l, double mu, double s1, double s2) {
     const double t = (l - mu) / (l < mu ? s1 : s2);
@@ -102,7 +127,10 @@ Color sun_radiance(double theta, double turbidity) {
         const double um = l / 1000.0;
         const double tau_r = std::exp(-m * 0.008735 * std::pow(um, -4.08));
         const double tau_a = std::exp(-m * beta * std::pow(um, -1.3));
-        const double v = s * tau_r * tau_a * (i == 0 || i == 370 ? 0.5 : 1.0);  // trapezoid weights
+        const double tau_o = std::exp(-m * table(kOzoneL, kOzoneK, l) * 0.35);  // 0.35 cm of ozone
+        const double kwa = table(kWaterL, kWaterK, l) * 2.0 * m;                  // 2 cm of precipitable water
+        const double tau_wa = std::exp(-0.2385 * kwa / std::pow(1.0 + 20.07 * kwa, 0.45));
+        const double v = s * tau_r * tau_a * tau_o * tau_wa * (i == 0 || i == 370 ? 0.5 : 1.0);  // trapezoid weights
         X += v * (1.056 * g(l, 599.8, 37.9, 31.0) + 0.362 * g(l, 442.0, 16.0, 26.7) - 0.065 * g(l, 501.1, 20.4, 26.2));
         Y += v * (0.821 * g(l, 568.8, 46.9, 40.5) + 0.286 * g(l, 530.9, 16.3, 31.1));
         Z += v * (1.217 * g(l, 437.0, 11.8, 36.0) + 0.681 * g(l, 459.0, 26.0, 13.8));

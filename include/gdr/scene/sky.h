@@ -10,9 +10,9 @@
 // solid angle equals that of the true sun: its spectral radiance is that of
 // A. J. Preetham, P. Shirley and B. Smits, "A Practical Analytic Model for
 // Daylight" (SIGGRAPH 1999), the extraterrestrial solar spectrum attenuated by
-// Rayleigh and aerosol (turbidity) extinction along the relative optical air
-// mass; its ozone, mixed-gas and water-vapour absorption are left out (a few
-// percent in red at high sun), and the spectrum is taken to linear sRGB with
+// Rayleigh and aerosol (turbidity) extinction and ozone and water-vapour
+// absorption along the relative optical air mass (the mixed-gas band at 760 nm
+// lies outside the spectrum's 380-750 nm), and is taken to linear sRGB with
 // the analytic CIE 1931 fit of C. Wyman, P.-P. Sloan and P. Shirley, "Simple
 // Analytic Approximations to the CIE XYZ Color Matching Functions" (JCGT 2013).
 //
