@@ -296,7 +296,7 @@ TEST_CASE("cli: merging gradient-domain renders reconstructs the pooled buffers"
 
 TEST_CASE("cli: check-shift takes a Mitsuba scene's -D parameters and --lenient", "[cli][mitsuba]") {
     // A diffuse rectangle whose reflectance is the scene's $level, lit by an
-    // emitter behind the camera, and a sun-and-sky emitter, which gdr does not support.
+    // emitter behind the camera, and a projector emitter, which gdr does not support.
     const std::string scene = out("check-shift.xml");
     std::ofstream(scene) << R"(<scene version="3.0.0">
   <sensor type="perspective"><float name="fov" value="40"/>
@@ -306,11 +306,11 @@ TEST_CASE("cli: check-shift takes a Mitsuba scene's -D parameters and --lenient"
   <shape type="rectangle"><boolean name="flip_normals" value="true"/>
     <transform name="to_world"><scale value="3"/><translate z="6"/></transform>
     <emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
-  <emitter type="sunsky"/>
+  <emitter type="projector"/>
 </scene>)";
     CHECK_THAT(error_of({"check-shift", scene, "--paths", "20"}), Contains("$level"));
     CHECK_THAT(error_of({"check-shift", scene, "--paths", "20", "-D", "level=0.5"}),
-               Contains("sunsky") && Contains("--lenient"));
+               Contains("projector") && Contains("--lenient"));
     CHECK_THAT(error_of({"check-shift", scene, "-D", "level"}), Contains("-D") && Contains("name=value"));
     CHECK_THAT(test::stdout_of([&] {
                    cli::run({"check-shift", scene, "--paths", "20", "-D", "level=0.5", "--lenient"});

@@ -581,17 +581,12 @@ TEST_CASE("mitsuba: unsupported elements are errors naming file, line, element a
     CHECK_THAT(x.error(rect(R"(<bsdf type="diffuse" id="d"><float name="sheen" value="1"/></bsdf>)")),
                Catch::Contains("<float name=\"sheen\"> in <bsdf type=\"diffuse\" id=\"d\">") &&
                    Catch::Contains("unsupported property 'sheen'"));
-    // Sun and sky emitters: not supported; --lenient skips them and renders the area lights.
+    // Sun and sky emitters are environments (test_sky.cpp); a second one is refused.
     for (const char* env : {"sunsky", "sky", "sun"}) {
         INFO(env);
         const std::string e = std::string("\n<emitter type=\"") + env + "\" id=\"sky\"/>";
-        CHECK_THAT(x.error(e + rect("")), Catch::Contains(":7: <emitter type=\"" + std::string(env) + "\" id=\"sky\">") &&
-                                               Catch::Contains("sun and sky emitters") &&
-                                               Catch::Contains("not supported"));
-        const SceneFile s = x.load(e + rect("<emitter type=\"area\"/>"), lenient());
-        CHECK(any_warning(s, "not supported"));
-        CHECK(s.scene->has_lights());
-        CHECK(s.scene->environment() == nullptr);
+        CHECK(x.load(e + rect("")).scene->environment() != nullptr);
+        CHECK_THAT(x.error(e + "<emitter type=\"constant\"/>" + rect("")), Catch::Contains("one environment"));
     }
     // constant and envmap are environments (test_environment.cpp).
     CHECK(x.load("\n<emitter type=\"constant\"/>" + rect("")).scene->environment() != nullptr);
@@ -772,11 +767,9 @@ TEST_CASE("mitsuba: the shared scenes' XML renders equal gdr's scene files of th
 
 TEST_CASE("mitsuba: the published scenes load (with --lenient for the missing meshes) and render without NaN",
           "[mitsuba][shared]") {
-    // The classroom is lit by a sunsky alone, which gdr does not render: even
-    // --lenient refuses a scene whose every light it drops.
+    // The classroom is lit by a sunsky alone: an environment.
     if (const std::string classroom = gdr::test::public_scene("mitsuba/classroom/scene.xml"); !classroom.empty())
-        CHECK_THROWS_WITH(load_scene_file(classroom, lenient()),
-                          Catch::Contains("every emitter was dropped") && Catch::Contains("sun and sky emitters"));
+        CHECK(load_scene_file(classroom, lenient()).scene->environment() != nullptr);
     for (const char* s : {"living-room", "spaceship"}) {
         INFO(s);
         GDR_PUBLIC_SCENE_OR_SKIP(path, std::string("mitsuba/") + s + "/scene.xml");

@@ -72,7 +72,7 @@ TEST_CASE("mitsuba import: strict mode lists every unsupported element at once",
     const std::string body = R"(<shape type="hair" id="fur"/>
 <shape type="rectangle"><bsdf type="hanrahan" id="skin"/></shape>
 <shape type="rectangle"><bsdf type="diffuse" id="d"><float name="sheen" value="1"/></bsdf></shape>
-<emitter type="sunsky" id="sky"/>
+<emitter type="projector" id="sky"/>
 )" + kRect;
     const std::string e = s.error(body);
     const std::string file = s.dir("scene.xml");
@@ -81,7 +81,7 @@ TEST_CASE("mitsuba import: strict mode lists every unsupported element at once",
     CHECK_THAT(e, Catch::Contains(file + ":6: <shape type=\"hair\" id=\"fur\">: unsupported shape type 'hair'"));
     CHECK_THAT(e, Catch::Contains(file + ":7: <bsdf type=\"hanrahan\" id=\"skin\">") && Catch::Contains("'hanrahan'"));
     CHECK_THAT(e, Catch::Contains(file + ":8: <float name=\"sheen\">") && Catch::Contains("unsupported property 'sheen'"));
-    CHECK_THAT(e, Catch::Contains(file + ":9: <emitter type=\"sunsky\" id=\"sky\">"));
+    CHECK_THAT(e, Catch::Contains(file + ":9: <emitter type=\"projector\" id=\"sky\">"));
     // Each says what --lenient would do instead, which it then does.
     CHECK(count_of(e, "--lenient") == 5);  // the heading and the four
     const SceneFile l = s.load(body, true);
@@ -117,8 +117,8 @@ TEST_CASE("mitsuba import: dropping every shape or every emitter is an error in 
         const std::string shapes = s.error(R"(<shape type="hair"/><shape type="hair"/>)", lenient);
         CHECK_THAT(shapes, Catch::Contains("unsupported shape type 'hair'"));
         if (lenient) CHECK_THAT(shapes, Catch::Contains("every shape was dropped (2 <shape> elements)"));
-        const std::string lights = s.error(R"(<emitter type="sunsky"/><shape type="rectangle"/>)", lenient);
-        CHECK_THAT(lights, Catch::Contains("sun and sky emitters"));
+        const std::string lights = s.error(R"(<emitter type="projector"/><shape type="rectangle"/>)", lenient);
+        CHECK_THAT(lights, Catch::Contains("emitter type 'projector'"));
         if (lenient) CHECK_THAT(lights, Catch::Contains("every emitter was dropped (1 <emitter> element)"));
     }
     // An emitter dropped with its shape counts too.
@@ -127,7 +127,7 @@ TEST_CASE("mitsuba import: dropping every shape or every emitter is an error in 
     // A scene that declares no emitter at all is the author's choice: it loads.
     CHECK_NOTHROW(s.load(R"(<shape type="rectangle"/>)"));
     // One light of two dropped is a warning only.
-    const SceneFile l = s.load(R"(<emitter type="sunsky"/>)" + kRect, true);
+    const SceneFile l = s.load(R"(<emitter type="projector"/>)" + kRect, true);
     CHECK(l.scene->has_lights());
 }
 

@@ -32,6 +32,7 @@
 #include "gdr/io/ply.h"
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
+#include "gdr/scene/sky.h"
 #include "mitsuba_shapes.h"
 #include "obj_lines.h"
 
@@ -1821,10 +1822,58 @@ void Importer::emitter(xml_node n) {
         return;
     }
     if (type == "sunsky" || type == "sky" || type == "sun") {
-        dropped(n,
-                "sun and sky emitters (sunsky, sky, sun) are not supported (--lenient skips it with a warning and "
-                "renders the scene's other lights)",
-                "sun and sky emitters are not supported; skipped (--lenient), so only the other lights light the scene");
+        if (environment_) fail(n, "a scene takes one environment emitter (constant, envmap, sky, sun or sunsky)");
+        Props p = props(n);
+        SkyParams sp;
+        sp.turbidity = get_float(p, "turbidity", 3.f);
+        if (type != "sun") sp.albedo = get_colour(p, "albedo", Color(0.15f));
+        const long long res = get_int(p, "resolution", 512);
+        sp.resolution = int(std::clamp<long long>(res, -1, 1 << 20));
+        const float scale = get_float(p, "scale", 1.f);
+        if (!std::isfinite(scale) || scale < 0.f) fail(n, "'scale' must be finite and non-negative");
+        if (type == "sunsky") {
+            sp.sky_scale = get_float(p, "sky_scale", 1.f) * scale;
+            sp.sun_scale = get_float(p, "sun_scale", 1.f) * scale;
+        } else {
+            sp.sky_scale = type == "sky" ? scale : 0.f;
+            sp.sun_scale = type == "sun" ? scale : 0.f;
+        }
+        if (type != "sky") sp.sun_radius_scale = get_float(p, "sun_radius_scale", 1.f);
+        if (type != "sun") {
+            bool given = false;
+            const float stretch = get_float(p, "stretch", 1.f, &given);
+            if (given && stretch != 1.f)
+                unsupported(n, fmt::format("'stretch' {} (gdr renders the sky above the horizon only)", stretch),
+                            "uses 1");
+            const xml_node ext = take(p, "extend");
+            if (ext && raw(ext, "value") != "false")
+                unsupported(ext, "'extend' (gdr renders the sky above the horizon only)", "leaves it black below");
+        }
+        ignore(p, {"sampling_weight"});
+        const glm::mat3 xf = glm::mat3(mirror_ * get_transform(p, "to_world"));
+        const xml_node sun_node = take(p, "sun_direction");
+        if (sun_node) {
+            expect_tag(sun_node, {"vector", "point"});
+            // A world direction, taken to the emitter's frame.
+            sp.sun_dir = glm::transpose(xf) * xyz(sun_node, 0.f);
+            for (const char* k : {"year", "month", "day", "hour", "minute", "second", "latitude", "longitude", "timezone"})
+                if (xml_node t = take(p, k))
+                    fail(t, std::string("'") + k + "' and 'sunDirection' are both given: give one or the other");
+        } else {
+            const auto num = [&](const char* k, double def) { return double(get_float(p, k, float(def))); };
+            // Mitsuba's defaults: 10 July 2010, 15:00, Tokyo (UTC+9).
+            const int year = int(num("year", 2010)), month = int(num("month", 7)), day = int(num("day", 10));
+            if (month < 1 || month > 12 || day < 1 || day > 31)
+                fail(n, fmt::format("date {}-{}-{} is not a calendar date", year, month, day));
+            sp.sun_dir = sun_direction_at(year, month, day, num("hour", 15), num("minute", 0), num("second", 0),
+                                          num("latitude", 35.6894), num("longitude", 139.6917), num("timezone", 9));
+        }
+        finish(p);
+        try {
+            environment_ = Environment::from_map(bake_sky(sp), xf, 1.f, doc_of(n).file + ": " + type);
+        } catch (const Error& e) {
+            fail(n, e.what());
+        }
         return;
     }
     if (type == "point" || type == "spot" || type == "directional") {
