@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "gdr/io/scene_file.h"
+#include "gdr/core/error.h"
 #include "gdr/scene/scene.h"
 #include "gdr/shift/shift.h"
 #include "gdr/shift/validate.h"
@@ -264,4 +265,57 @@ TEST_CASE("bump map: gpt's gradients equal pt's differences in expectation on a 
         for (double& m : neg.mean) m = -m;
         CHECK(test::max_z(neg, ref) > 5.0);
     }
+}
+
+TEST_CASE("bump map: Mitsuba's bumpmap and normalmap load strictly, with their scale and errors", "[bump][mitsuba]") {
+    // Shown to fail before the importer knew them (strict loading stopped on
+    // "unsupported BSDF type 'bumpmap'").
+    const BumpDir dir;
+    const auto load = [&](const std::string& bsdf) {
+        const std::string file = dir.path + "/one.xml";
+        std::ofstream(file, std::ios::binary) << R"(<scene version="0.6.0">
+  <sensor type="perspective"><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+  <shape type="rectangle">)" << bsdf << R"(</shape>
+  <shape type="rectangle"><transform name="toWorld"><translate z="3"/></transform><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+</scene>
+)";
+        return load_scene_file(file);
+    };
+    const auto material = [](const SceneFile& sf) -> const Material& {
+        for (const Material& m : sf.scene->materials())
+            if (is_black(m.emission)) return m;
+        FAIL("no reflecting material");
+        return sf.scene->materials()[0];
+    };
+    // 0.6: a scale texture around the height.
+    const SceneFile a = load(R"(<bsdf type="bumpmap"><texture type="scale"><float name="scale" value="0.5"/>
+        <texture type="checkerboard"><rgb name="color0" value="0.2"/><rgb name="color1" value="0.6"/></texture></texture>
+        <bsdf type="roughconductor"/></bsdf>)");
+    const Material& ma = material(a);
+    REQUIRE(ma.bump);
+    CHECK(ma.normal_map == nullptr);
+    CHECK(luminance(ma.bump->mean()) == Approx(0.5f * 0.4f));
+    CHECK((ma.bsdf->flags() & kGlossy) != 0);
+    // 3: a scale property.
+    const SceneFile b = load(R"(<bsdf type="bumpmap"><float name="scale" value="2"/>
+        <texture type="checkerboard"><rgb name="color0" value="0.2"/><rgb name="color1" value="0.6"/></texture>
+        <bsdf type="diffuse"/></bsdf>)");
+    REQUIRE(material(b).bump);
+    CHECK(luminance(material(b).bump->mean()) == Approx(2.f * 0.4f));
+    const SceneFile c = load(R"(<bsdf type="normalmap"><texture type="checkerboard"/><bsdf type="diffuse"/></bsdf>)");
+    CHECK(material(c).normal_map);
+    CHECK(material(c).bump == nullptr);
+    // Without its texture or its BSDF: an error naming the element.
+    const auto error = [&](const std::string& bsdf) {
+        try {
+            load(bsdf);
+        } catch (const Error& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    CHECK_THAT(error(R"(<bsdf type="bumpmap" id="b"><bsdf type="diffuse"/></bsdf>)"),
+               Catch::Contains("id=\"b\"") && Catch::Contains("height map"));
+    CHECK_THAT(error(R"(<bsdf type="normalmap" id="n"><texture type="checkerboard"/></bsdf>)"),
+               Catch::Contains("id=\"n\"") && Catch::Contains("nested <bsdf>"));
 }
