@@ -160,6 +160,8 @@ struct Doc {
 struct BuiltBsdf {
     std::shared_ptr<Bsdf> bsdf;
     std::shared_ptr<Texture> opacity;
+    std::shared_ptr<Texture> bump;        // Material::bump
+    std::shared_ptr<Texture> normal_map;  // Material::normal_map
     std::string name;
     int material = -1;
 };
@@ -1026,7 +1028,34 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
             // A fractional opacity lets rays through with probability 1 - opacity (Material::opacity).
             b->opacity = make_constant_texture(colour_of(o));
         }
-    } else if (type == "bumpmap" || type == "normalmap" || type == "blendbsdf" || type == "coating" ||
+    } else if (type == "bumpmap" || type == "normalmap") {
+        // A nested texture (the height, or the tangent-space normal) and a
+        // nested BSDF, either as <ref>; Mitsuba 0.6 scales a height with a
+        // `scale` texture around it, Mitsuba 3 with a `scale` property.
+        std::shared_ptr<BuiltBsdf> inner;
+        std::shared_ptr<Texture> map;
+        const auto consider = [&](xml_node c) {
+            const xml_node t = std::string(c.name()) == "ref" ? resolve(c) : c;
+            const std::string kind = t.name();
+            if (kind == "texture" && !map) map = texture(t);
+            else if (kind == "bsdf" && !inner) inner = bsdf(t);
+            else return;
+            p.used.insert(c.internal_object());
+        };
+        for (xml_node c : p.objects) consider(c);
+        for (auto& [name, c] : p.named)
+            if (name != "scale" && (std::string(c.name()) == "texture" || std::string(c.name()) == "ref")) consider(c);
+        if (!inner) fail(n, "needs a nested <bsdf> (or <ref>)");
+        if (!map) fail(n, "needs a nested <texture> (or <ref>): the " + std::string(type == "bumpmap" ? "height" : "normal") + " map");
+        if (inner->bump || inner->normal_map) unsupported(n, "a " + type + " around another bump or normal map", "keeps the outer one only");
+        b->bsdf = inner->bsdf, b->opacity = inner->opacity;
+        if (type == "bumpmap") {
+            const float scale = p.named.count("scale") ? scalar_param(p, "scale", 1.f) : 1.f;
+            b->bump = scale == 1.f ? map : make_scaled_texture(map, Color(scale));
+        } else {
+            b->normal_map = map;
+        }
+    } else if (type == "blendbsdf" || type == "coating" ||
                type == "roughcoating") {
         unsupported(n, "unsupported BSDF type '" + type + "'", "renders its nested BSDF");
         const auto inner = nested(false);
@@ -1346,11 +1375,16 @@ uint32_t Importer::material_for(const std::shared_ptr<BuiltBsdf>& b, const Color
             m.name = b->name;
             m.bsdf = b->bsdf;
             m.opacity = b->opacity;
+            m.bump = b->bump;
+            m.normal_map = b->normal_map;
             materials_.push_back(std::move(m));
         }
         return uint32_t(b->material);
     }
     if (b->opacity) unsupported(at, "an area emitter with a mask BSDF", "renders the emitter opaque");
+    // Light samples on an emitter take its geometric normal as their frame,
+    // so a perturbed frame there would differ between a hit and a sample.
+    if (b->bump || b->normal_map) unsupported(at, "an area emitter with a bump or normal map", "renders the emitter unperturbed");
     Material m;
     m.name = shape_name;
     m.bsdf = b->bsdf;

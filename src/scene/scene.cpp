@@ -205,6 +205,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         const Vec3 ng = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
         if (mesh_.material_ids[t] > kMaterialMask) throw InputError(origin + ": too many materials");
         uint32_t info = mesh_.material_ids[t];
+        if (info < materials_.size() && (materials_[info].bump || materials_[info].normal_map)) info |= kPerturbed;
         for (int k = 0; k < 3; ++k) {
             if (!mesh_.normals.empty()) {
                 // Flat faces (vertex normals equal to the face normal) skip interpolation.
@@ -457,7 +458,7 @@ void Scene::intersect_packet(const Ray* rays, const bool* active, SurfaceInterac
         // Coherent rays often hit one triangle: a flat one's normal and frame
         // (a square root and two divisions) are then copied from an earlier lane.
         int same = -1;
-        if (!(hit_info_[prim] & kSmooth))
+        if (!(hit_info_[prim] & (kSmooth | kPerturbed)))
             for (int j = 0; j < i && same < 0; ++j)
                 if (hit[j] && global_prim(rh.hit.primID[j], rh.hit.instID[0][j]) == prim) same = j;
         if (same >= 0)
@@ -506,7 +507,7 @@ void Scene::fill_hit_point(const Ray& ray, uint32_t t, float b1, float b2, float
 void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3& ng, float tfar,
                      SurfaceInteraction& si) const {
     fill_hit_point(ray, t, b1, b2, tfar, si);
-    if (!flat_frames_.empty() && !(hit_info_[t] & kSmooth)) {
+    if (!flat_frames_.empty() && !(hit_info_[t] & (kSmooth | kPerturbed))) {
         si.frame = flat_frames_[t];
         si.ng = si.frame.n;
         return;
@@ -522,7 +523,65 @@ void Scene::fill_hit(const Ray& ray, uint32_t t, float b1, float b2, const Vec3&
         // Shading normals on the other side of the face than ng would let light leak.
         if (glm::dot(ns, si.ng) < 0.f) ns = -ns;
     }
+    if (hit_info_[t] & kPerturbed) {
+        // The derivatives of the uv map fill_hit_point() used: the corners'
+        // uvs, or the barycentrics where the mesh has none.
+        const Vec3* p = &mesh_.positions[3 * t];
+        Vec2 uv[3] = {Vec2(0.f), Vec2(1.f, 0.f), Vec2(0.f, 1.f)};
+        if (hit_info_[t] & kHasUv) for (int k = 0; k < 3; ++k) uv[k] = mesh_.uvs[3 * t + k];
+        else if (!mesh_.uvs.empty()) uv[1] = uv[2] = Vec2(0.f);  // all-zero uvs: no gradient
+        Vec3 dpdu, dpdv;
+        if (triangle_uv_derivatives(p, uv, dpdu, dpdv)) {
+            ns = perturbed_normal(*si.material, ns, dpdu, dpdv, si.uv);
+            // As for interpolated normals: a perturbed normal behind the face
+            // would let light leak, so it is mirrored to ng's side.
+            if (glm::dot(ns, si.ng) < 0.f) ns = -ns;
+        }
+    }
     si.frame = Frame(ns);
+}
+
+bool triangle_uv_derivatives(const Vec3 p[3], const Vec2 uv[3], Vec3& dpdu, Vec3& dpdv) {
+    const Vec3 dp1 = p[1] - p[0], dp2 = p[2] - p[0];
+    const Vec2 d1 = uv[1] - uv[0], d2 = uv[2] - uv[0];
+    const float det = d1.x * d2.y - d1.y * d2.x;
+    dpdu = dpdv = Vec3(0.f);
+    if (!(std::abs(det) > 0.f) || !std::isfinite(det)) return false;
+    const float inv = 1.f / det;
+    dpdu = (d2.y * dp1 - d1.y * dp2) * inv;
+    dpdv = (d1.x * dp2 - d2.x * dp1) * inv;
+    if (is_finite(dpdu) && is_finite(dpdv)) return true;
+    dpdu = dpdv = Vec3(0.f);
+    return false;
+}
+
+Vec3 perturbed_normal(const Material& m, const Vec3& n, const Vec3& dpdu, const Vec3& dpdv, const Vec2& uv) {
+    if (!m.bump && !m.normal_map) return n;
+    // The uv derivatives projected onto the tangent plane of n, so that the
+    // perturbation tilts n itself (an interpolated normal included).
+    const Vec3 tu = dpdu - n * glm::dot(n, dpdu), tv = dpdv - n * glm::dot(n, dpdv);
+    const float c = glm::dot(glm::cross(tu, tv), n);  // signed uv-to-area scale (negative for mirrored uv)
+    if (!(std::abs(c) > 0.f) || !std::isfinite(c)) return n;
+    if (m.bump) {
+        // The displaced surface p + h n has tangents tu + h_u n and tv + h_v n
+        // (the derivative of n itself neglected, as Blinn does); their cross
+        // product is c n + h_v (tu x n) + h_u (n x tv), here divided by c so
+        // that it points to n's side whichever way uv runs.
+        const float h = kBumpStep;
+        const float hu = (luminance(m.bump->eval(uv + Vec2(h, 0.f))) - luminance(m.bump->eval(uv - Vec2(h, 0.f)))) / (2.f * h);
+        const float hv = (luminance(m.bump->eval(uv + Vec2(0.f, h))) - luminance(m.bump->eval(uv - Vec2(0.f, h)))) / (2.f * h);
+        if (hu == 0.f && hv == 0.f) return n;
+        const Vec3 g = n + (hv * glm::cross(tu, n) + hu * glm::cross(n, tv)) / c;
+        const float l = glm::length(g);
+        return l > 0.f && std::isfinite(l) ? g / l : n;
+    }
+    const Color rgb = m.normal_map->eval(uv);
+    const Vec3 local = 2.f * Vec3(rgb.r, rgb.g, rgb.b) - 1.f;
+    const Vec3 s = glm::normalize(tu);
+    const Vec3 t = (c > 0.f ? 1.f : -1.f) * glm::cross(n, s);  // on dp/dv's side of the plane
+    const Vec3 g = local.x * s + local.y * t + local.z * n;
+    const float l = glm::length(g);
+    return l > 0.f && std::isfinite(l) ? g / l : n;
 }
 
 void Scene::fill_hit_like(const Ray& ray, float b1, float b2, float tfar, const SurfaceInteraction& like,

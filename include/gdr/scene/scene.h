@@ -27,6 +27,15 @@ struct Material {
     /// reversible) and an opacity of 0 or 1 is an exact cut-out; null for an
     /// opaque surface.
     std::shared_ptr<Texture> opacity = nullptr;
+    /// Bump map (Mitsuba's bumpmap): a height field over uv, the luminance of
+    /// the texture in scene units along the shading normal, that tilts the
+    /// shading normal by its gradient (Blinn, "Simulation of wrinkled
+    /// surfaces", 1978) without moving the surface; null for none.
+    std::shared_ptr<Texture> bump = nullptr;
+    /// Tangent-space normal map (Mitsuba's normalmap): rgb in [0, 1] encodes
+    /// the shading normal 2 rgb - 1 in the frame of dp/du, dp/dv and the
+    /// normal; null for none. A material has at most one of bump and normal_map.
+    std::shared_ptr<Texture> normal_map = nullptr;
     /// bsdf->min_roughness() and bsdf->is_pure_delta(), filled in by the Scene:
     /// shift mappings classify every vertex they visit, and a field read is
     /// cheaper than a virtual call on that path.
@@ -112,6 +121,25 @@ inline bool zero_area_triangle(const Vec3& p0, const Vec3& p1, const Vec3& p2) {
 /// index on a non-finite or negative intensity, a non-finite position, a
 /// zero direction or a spot whose angles are not 0 < beam_width <= cutoff <= pi.
 void check_delta_lights(std::vector<DeltaLight>& lights, const std::string& origin);
+/// Step (uv units) of the central differences that give a bump map's height
+/// gradient: 2^-12, a texel of a 4096-wide image, small enough to resolve the
+/// images scenes use and large enough that float uv near 1 (spacing 6e-8)
+/// rounds the difference by under 1e-3 of itself.
+inline constexpr float kBumpStep = 1.f / 4096.f;
+
+/// The shading normal that material m's bump or normal map makes of unit
+/// normal n at uv, where dpdu and dpdv (scene units per uv unit) are the
+/// surface's derivatives: a deterministic function of the hit, so that every
+/// integrator and shift mapping sees the same frame there. Returns n itself
+/// (bit for bit) where the height gradient is zero, the uv map is degenerate
+/// or the material has neither map. The result is on n's side of the
+/// surface for a bump map; a normal map may give any unit vector.
+Vec3 perturbed_normal(const Material& m, const Vec3& n, const Vec3& dpdu, const Vec3& dpdv, const Vec2& uv);
+
+/// dp/du and dp/dv (scene units per uv unit) of the triangle with corners p
+/// and texture coordinates uv; false (and both zero) if its uv map is
+/// degenerate (zero or non-finite uv area).
+bool triangle_uv_derivatives(const Vec3 p[3], const Vec2 uv[3], Vec3& dpdu, Vec3& dpdv);
 
 /// Counters gathered while loading (reported by the CLI).
 struct SceneStats {
@@ -372,7 +400,8 @@ private:
     // and Embree's hit record; vertex normals and uvs only where they vary.
     static constexpr uint32_t kSmooth = 1u << 31;   // vertex normals differ from the face normal
     static constexpr uint32_t kHasUv = 1u << 30;    // texture coordinates are not all zero
-    static constexpr uint32_t kMaterialMask = kHasUv - 1;
+    static constexpr uint32_t kPerturbed = 1u << 29; // the material has a bump or normal map
+    static constexpr uint32_t kMaterialMask = kPerturbed - 1;
     TriangleMesh mesh_;
     std::vector<Material> materials_;
     Camera camera_;
