@@ -119,6 +119,28 @@ inline BlockStats grey_stats(const std::vector<FrameBuffer>& fbs, const std::str
     });
 }
 
+// Block statistics of the differences of neighbouring pixels' grey values,
+// along x (or y), of layer `layer` over renders `fbs` (one per run), in
+// blocks of `block` pixels. With `add_direct`, `layer` is a gradient layer
+// (dx, dy): gradients leave directly visible emitters (and an environment
+// seen directly) to the "direct" layer, whose differences are added back.
+inline BlockStats difference_stats(const std::vector<FrameBuffer>& fbs, const char* layer, bool along_x,
+                                   bool add_direct, int block) {
+    const int w = fbs.at(0).width(), h = fbs.at(0).height();
+    return block_stats(int(fbs.size()), w, h, block, [&](int r, auto&& add) {
+        const Image& d = fbs[r].get(layer);
+        for (int y = 0; y < h - !along_x; ++y)
+            for (int x = 0; x < w - along_x; ++x) {
+                if (!add_direct) {
+                    add(x, y, grey(d, x + along_x, y + !along_x) - grey(d, x, y));
+                    continue;
+                }
+                const Image& e = fbs[r].get("direct");
+                add(x, y, grey(d, x, y) + grey(e, x + along_x, y + !along_x) - grey(e, x, y));
+            }
+    });
+}
+
 // `runs` renders of `scene` by `integrator` with seeds seed0, seed0 + 1, ...
 inline std::vector<FrameBuffer> render_runs(const Scene& scene, const std::string& integrator, const Params& p,
                                             long long spp, int runs, uint64_t seed0) {

@@ -33,8 +33,11 @@ Vec3 dir(float theta_deg, float phi = 0.4f) {
 /// The same direction below the surface (z mirrored).
 Vec3 below(const Vec3& w) { return {w.x, w.y, -w.z}; }
 
-/// Chi-square of bsdf.sample() against bsdf.pdf() for one wo.
-gdr::test::Chi2Result bsdf_chi2(const Bsdf& b, const Vec3& wo, int64_t samples = 200000, uint64_t seed = 1) {
+/// Chi-square of bsdf.sample() against the solid-angle density `pdf` (1/sr)
+/// for one wo: bsdf.pdf() itself, or a deliberately wrong one.
+template <class Pdf>
+gdr::test::Chi2Result bsdf_chi2_against(const Bsdf& b, const Vec3& wo, Pdf&& pdf, int64_t samples = 200000,
+                                        uint64_t seed = 1) {
     gdr::test::SphericalChi2Options opt;
     opt.samples = samples;
     opt.seed = seed;
@@ -46,7 +49,12 @@ gdr::test::Chi2Result bsdf_chi2(const Bsdf& b, const Vec3& wo, int64_t samples =
             if (!bs) return std::nullopt;
             return bs->wi;
         },
-        [&](const Vec3& wi) { return b.pdf(wo, wi, kUv); }, opt);
+        pdf, opt);
+}
+
+/// Chi-square of bsdf.sample() against bsdf.pdf() for one wo.
+gdr::test::Chi2Result bsdf_chi2(const Bsdf& b, const Vec3& wo, int64_t samples = 200000, uint64_t seed = 1) {
+    return bsdf_chi2_against(b, wo, [&](const Vec3& wi) { return b.pdf(wo, wi, kUv); }, samples, seed);
 }
 
 /// Monte Carlo directional albedo through sample(): E[f |cos| / pdf] per channel,
@@ -218,17 +226,9 @@ TEST_CASE("bsdf chi2: the test detects a wrong refraction Jacobian", "[bsdf][sta
     // transmitted lobe lacks the eta^2 in its Jacobian.
     const auto b = make_rough_dielectric(1.5f, 0.3f);
     const Vec3 wo = dir(30.f);
-    gdr::test::SphericalChi2Options opt;
-    opt.samples = 200000;
-    const auto r = spherical_chi2(
-        [&](Sampler& s) -> std::optional<Vec3> {
-            const float ul = s.next1d();
-            const Vec2 u = s.next2d();
-            const auto bs = b->sample(wo, kUv, ul, u);
-            if (!bs) return std::nullopt;
-            return bs->wi;
-        },
-        [&](const Vec3& wi) { return b->pdf(wo, wi, kUv) * (wi.z < 0.f ? 1.f / 1.1f : 1.f); }, opt);
+    const auto r = bsdf_chi2_against(
+        *b, wo,
+        [&](const Vec3& wi) { return b->pdf(wo, wi, kUv) * (wi.z < 0.f ? 1.f / 1.1f : 1.f); });
     CHECK_FALSE(r.passed);
 }
 
@@ -799,17 +799,9 @@ TEST_CASE("bsdf chi2: phong - the test detects a lobe pdf normalised like the va
     const float n = 10.f;
     const auto b = phong(Color(0.f), Color(0.9f), n);
     const Vec3 wo = dir(20.f);
-    gdr::test::SphericalChi2Options opt;
-    opt.samples = 200000;
-    const auto r = spherical_chi2(
-        [&](Sampler& s) -> std::optional<Vec3> {
-            const float ul = s.next1d();
-            const Vec2 u = s.next2d();
-            const auto bs = b->sample(wo, kUv, ul, u);
-            if (!bs) return std::nullopt;
-            return bs->wi;
-        },
-        [&](const Vec3& wi) { return b->pdf(wo, wi, kUv) * (n + 2.f) / (n + 1.f); }, opt);
+    const auto r = bsdf_chi2_against(
+        *b, wo,
+        [&](const Vec3& wi) { return b->pdf(wo, wi, kUv) * (n + 2.f) / (n + 1.f); });
     INFO(r.message);
     CHECK_FALSE(r.passed);
 }
@@ -975,17 +967,7 @@ TEST_CASE("bsdf chi2: the test detects Beckmann samples with GGX's density", "[b
     const auto b = make_rough_conductor(Color(1.f), 0.3f, MicrofacetType::Beckmann);
     const auto g = make_rough_conductor(Color(1.f), 0.3f);
     const Vec3 wo = dir(30.f);
-    gdr::test::SphericalChi2Options opt;
-    opt.samples = 200000;
-    const auto r = spherical_chi2(
-        [&](Sampler& s) -> std::optional<Vec3> {
-            const float ul = s.next1d();
-            const Vec2 u = s.next2d();
-            const auto bs = b->sample(wo, kUv, ul, u);
-            if (!bs) return std::nullopt;
-            return bs->wi;
-        },
-        [&](const Vec3& wi) { return g->pdf(wo, wi, kUv); }, opt);
+    const auto r = bsdf_chi2_against(*b, wo, [&](const Vec3& wi) { return g->pdf(wo, wi, kUv); });
     INFO(r.message);
     CHECK_FALSE(r.passed);
 }
@@ -1092,21 +1074,10 @@ TEST_CASE("bsdf chi2: the test detects a Ward pdf without cos(theta_h)", "[bsdf]
     const auto b = make_ward(make_constant_texture(Color(0.f)), make_constant_texture(Color(0.8f)), alpha,
                              WardVariant::Balanced);
     const Vec3 wo = dir(40.f);
-    gdr::test::SphericalChi2Options opt;
-    opt.samples = 200000;
-    const auto r = spherical_chi2(
-        [&](Sampler& s) -> std::optional<Vec3> {
-            const float ul = s.next1d();
-            const Vec2 u = s.next2d();
-            const auto bs = b->sample(wo, kUv, ul, u);
-            if (!bs) return std::nullopt;
-            return bs->wi;
-        },
-        [&](const Vec3& wi) {
-            const Vec3 h = glm::normalize(wo + wi);
-            return wi.z > 0.f ? b->pdf(wo, wi, kUv) / h.z : 0.f;
-        },
-        opt);
+    const auto r = bsdf_chi2_against(*b, wo, [&](const Vec3& wi) {
+        const Vec3 h = glm::normalize(wo + wi);
+        return wi.z > 0.f ? b->pdf(wo, wi, kUv) / h.z : 0.f;
+    });
     INFO(r.message);
     CHECK_FALSE(r.passed);
 }

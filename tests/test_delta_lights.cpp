@@ -306,27 +306,15 @@ TEST_CASE("delta lights: gpt's gradients and primal equal pt's on a point- and a
         INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : "spot"));
         const auto scene = lit_box(res, lights);
         const std::vector<FrameBuffer> pt = render_runs(*scene, "pt", Params(), 128, runs, 1000);
-        const auto diffs = [&](const std::vector<FrameBuffer>& fb, const char* layer, bool along_x, bool add_direct) {
-            return block_stats(runs, res, res, block, [&](int r, auto&& add) {
-                const Image& d = fb[r].get(layer);
-                for (int y = 0; y < res - !along_x; ++y)
-                    for (int x = 0; x < res - along_x; ++x) {
-                        if (!add_direct) {
-                            add(x, y, grey(d, x + along_x, y + !along_x) - grey(d, x, y));
-                            continue;
-                        }
-                        const Image& e = fb[r].get("direct");
-                        add(x, y, grey(d, x, y) + grey(e, x + along_x, y + !along_x) - grey(e, x, y));
-                    }
-            });
-        };
-        const BlockStats ref_dx = diffs(pt, "color", true, false), ref_dy = diffs(pt, "color", false, false);
+        const BlockStats ref_dx = difference_stats(pt, "color", true, false, block);
+        const BlockStats ref_dy = difference_stats(pt, "color", false, false, block);
         const BlockStats ref = grey_stats(pt, "color", block);
         for (const char* shift : kShifts) {
             INFO("shift " << shift);
             const std::vector<FrameBuffer> g =
                 render_runs(*scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 48, runs, 1);
-            const BlockStats dx = diffs(g, "dx", true, true), dy = diffs(g, "dy", false, true);
+            const BlockStats dx = difference_stats(g, "dx", true, true, block);
+            const BlockStats dy = difference_stats(g, "dy", false, true, block);
             const double zx = max_z(dx, ref_dx), zy = max_z(dy, ref_dy);
             BlockStats neg = dx;
             for (double& m : neg.mean) m = -m;
@@ -383,27 +371,15 @@ TEST_CASE("delta lights: gbdpt's gradients and primal equal bdpt's on a point- a
         INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : "spot"));
         const auto scene = lit_box(res, lights);
         const std::vector<FrameBuffer> ref = render_runs(*scene, "bdpt", Params(), 64, runs, 1000);
-        const auto diffs = [&](const std::vector<FrameBuffer>& fb, const char* layer, bool along_x, bool add_direct) {
-            return block_stats(runs, res, res, block, [&](int r, auto&& add) {
-                const Image& d = fb[r].get(layer);
-                for (int y = 0; y < res - !along_x; ++y)
-                    for (int x = 0; x < res - along_x; ++x) {
-                        if (!add_direct) {
-                            add(x, y, grey(d, x + along_x, y + !along_x) - grey(d, x, y));
-                            continue;
-                        }
-                        const Image& e = fb[r].get("direct");
-                        add(x, y, grey(d, x, y) + grey(e, x + along_x, y + !along_x) - grey(e, x, y));
-                    }
-            });
-        };
-        const BlockStats ref_dx = diffs(ref, "color", true, false), ref_dy = diffs(ref, "color", false, false);
+        const BlockStats ref_dx = difference_stats(ref, "color", true, false, block);
+        const BlockStats ref_dy = difference_stats(ref, "color", false, false, block);
         const BlockStats ref_p = grey_stats(ref, "color", block);
         for (const char* shift : kShifts) {
             INFO("shift " << shift);
             const std::vector<FrameBuffer> g =
                 render_runs(*scene, "gbdpt", params({{"shift", shift}, {"reconstruct", "none"}}), 16, runs, 1);
-            const BlockStats dx = diffs(g, "dx", true, true), dy = diffs(g, "dy", false, true);
+            const BlockStats dx = difference_stats(g, "dx", true, true, block);
+            const BlockStats dy = difference_stats(g, "dy", false, true, block);
             const BlockStats primal = grey_stats(g, "color", block);
             const double zx = max_z(dx, ref_dx), zy = max_z(dy, ref_dy), zp = max_z(primal, ref_p);
             const double z_short = max_z(scaled(dx, 0.8), ref_dx), zp_dark = max_z(scaled(primal, 0.95), ref_p);

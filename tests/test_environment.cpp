@@ -579,29 +579,15 @@ TEST_CASE("environment: gpt is unbiased on an environment-lit box, for every shi
     const int res = 24, block = 6, runs = 16;
     const auto scene = env_box(res);
     const std::vector<FrameBuffer> pt = render_runs(*scene, "pt", Params(), 128, runs, 1000);
-    const auto diffs = [&](const std::vector<FrameBuffer>& fb, const char* layer, bool along_x, bool add_direct) {
-        return block_stats(runs, res, res, block, [&](int r, auto&& add) {
-            const Image& d = fb[r].get(layer);
-            for (int y = 0; y < res - !along_x; ++y)
-                for (int x = 0; x < res - along_x; ++x) {
-                    if (!add_direct) {
-                        add(x, y, grey(d, x + along_x, y + !along_x) - grey(d, x, y));
-                        continue;
-                    }
-                    // Gradients leave directly visible emitters (and the
-                    // environment seen directly) to the direct layer.
-                    const Image& e = fb[r].get("direct");
-                    add(x, y, grey(d, x, y) + grey(e, x + along_x, y + !along_x) - grey(e, x, y));
-                }
-        });
-    };
-    const BlockStats ref_dx = diffs(pt, "color", true, false), ref_dy = diffs(pt, "color", false, false);
+    const BlockStats ref_dx = difference_stats(pt, "color", true, false, block);
+    const BlockStats ref_dy = difference_stats(pt, "color", false, false, block);
     const BlockStats ref = grey_stats(pt, "color", block);
     for (const char* shift : {"half-vector", "reconnection", "replay", "replay-reconnect"}) {
         INFO("shift " << shift);
         const std::vector<FrameBuffer> g =
             render_runs(*scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 48, runs, 1);
-        const BlockStats dx = diffs(g, "dx", true, true), dy = diffs(g, "dy", false, true);
+        const BlockStats dx = difference_stats(g, "dx", true, true, block);
+        const BlockStats dy = difference_stats(g, "dy", false, true, block);
         const double zx = max_z(dx, ref_dx), zy = max_z(dy, ref_dy);
         BlockStats neg = dx;
         for (double& m : neg.mean) m = -m;

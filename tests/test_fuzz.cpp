@@ -79,18 +79,21 @@ bool finite_exr(const fs::path& p) {
     return true;
 }
 
+/// Removes directory `d` and everything in it when the test ends, passed or failed.
+struct RemoveOnExit {
+    fs::path d;
+    ~RemoveOnExit() {
+        std::error_code ec;
+        fs::remove_all(d, ec);
+    }
+};
+
 }  // namespace
 
 TEST_CASE("fuzz: mutated scenes, meshes, materials and EXRs: no crash, hang, NaN output or changed input", "[fuzz]") {
     const fs::path dir = fs::temp_directory_path() / ("gdr-test-fuzz-" + std::to_string(getpid()));
     fs::create_directories(dir);
-    struct Cleanup {
-        fs::path d;
-        ~Cleanup() {
-            std::error_code ec;
-            fs::remove_all(d, ec);
-        }
-    } cleanup{dir};
+    const RemoveOnExit cleanup{dir};
 
     // The originals: the Cornell box at 8x8, and an EXR of each integrator.
     const std::string box = GDR_SOURCE_DIR "/scenes/cornell-box/";
@@ -431,13 +434,7 @@ TEST_CASE("fuzz: hostile structure, special files and far-away coordinates throu
     const fs::path dir = fs::temp_directory_path() / ("gdr-test-fuzz-hostile-" + std::to_string(getpid()));
     fs::remove_all(dir);
     fs::create_directories(dir);
-    struct Cleanup {
-        fs::path d;
-        ~Cleanup() {
-            std::error_code ec;
-            fs::remove_all(d, ec);
-        }
-    } cleanup{dir};
+    const RemoveOnExit cleanup{dir};
     const auto at = [&](const std::string& name) { return (dir / name).string(); };
     const std::string box = GDR_SOURCE_DIR "/scenes/cornell-box/";
     const std::string obj_text = read_bytes(box + "CornellBox-Original.obj");

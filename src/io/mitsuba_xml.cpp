@@ -1694,6 +1694,23 @@ void Importer::shape(xml_node n, const Mat4& outer) {
         b = default_bsdf_;
     }
     const auto label = [&](const std::string& what) { return what + " '" + id + "'"; };
+    // Mesh files (obj, ply, serialized): max_smooth_angle in degrees, checked as Mitsuba does.
+    const auto smooth_angle = [&](bool face_normals, bool& given) {
+        const float angle = get_float(p, "max_smooth_angle", 0.f, &given);
+        if (given && face_normals) fail(n, "give either face_normals or max_smooth_angle, not both (as Mitsuba)");
+        if (given && !(angle >= 0.f && angle <= 180.f))
+            fail(p.named.at("max_smooth_angle"), "max_smooth_angle must lie in [0, 180] degrees");
+        return angle;
+    };
+    // Published scenes are sometimes shipped without their largest meshes:
+    // true when the mesh file is missing and the shape was dropped.
+    const auto missing = [&](const std::string& file) {
+        const std::string why = detail::not_a_file(file);
+        if (why.empty()) return false;
+        dropped(n, file + why + " (--lenient skips the shape with a warning)",
+                file + why + "; the shape is skipped (--lenient)");
+        return true;
+    };
     if (type == "obj" || type == "ply") {
         const std::string name = get_string(p, "filename", "");
         if (name.empty()) fail(n, "needs a 'filename'");
@@ -1701,18 +1718,10 @@ void Importer::shape(xml_node n, const Mat4& outer) {
         const bool flip_uv = type == "obj" ? get_bool(p, "flip_tex_coords", true) : true;
         ignore(p, {"collapse"});
         bool angle_given = false;
-        const float angle = get_float(p, "max_smooth_angle", 0.f, &angle_given);
-        if (angle_given && face_normals) fail(n, "give either face_normals or max_smooth_angle, not both (as Mitsuba)");
-        if (angle_given && !(angle >= 0.f && angle <= 180.f))
-            fail(p.named.at("max_smooth_angle"), "max_smooth_angle must lie in [0, 180] degrees");
+        const float angle = smooth_angle(face_normals, angle_given);
         finish(p);
         const std::string file = file_path(n, name);
-        if (const std::string why = detail::not_a_file(file); !why.empty()) {
-            // Published scenes are sometimes shipped without their largest meshes.
-            dropped(n, file + why + " (--lenient skips the shape with a warning)",
-                    file + why + "; the shape is skipped (--lenient)");
-            return;
-        }
+        if (missing(file)) return;
         const uint32_t mat = material_for(b, radiance, id, n);
         const size_t first = mesh_.size();
         if (type == "obj") load_obj_shape(n, file, face_normals, flip_uv, xf, flip, mat);
@@ -1727,17 +1736,10 @@ void Importer::shape(xml_node n, const Mat4& outer) {
         if (index < 0) fail(p.named.at("shape_index"), "shape_index must be >= 0");
         const bool face_normals = get_bool(p, "face_normals", false);
         bool angle_given = false;
-        const float angle = get_float(p, "max_smooth_angle", 0.f, &angle_given);
-        if (angle_given && face_normals) fail(n, "give either face_normals or max_smooth_angle, not both (as Mitsuba)");
-        if (angle_given && !(angle >= 0.f && angle <= 180.f))
-            fail(p.named.at("max_smooth_angle"), "max_smooth_angle must lie in [0, 180] degrees");
+        const float angle = smooth_angle(face_normals, angle_given);
         finish(p);
         const std::string file = file_path(n, name);
-        if (const std::string why = detail::not_a_file(file); !why.empty()) {
-            dropped(n, file + why + " (--lenient skips the shape with a warning)",
-                    file + why + "; the shape is skipped (--lenient)");
-            return;
-        }
+        if (missing(file)) return;
         SerializedMesh sm;
         try {
             sm = serialized_file(file).mesh(size_t(index));

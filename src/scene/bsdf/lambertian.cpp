@@ -1,6 +1,6 @@
 // Lambertian (ideal diffuse) reflection, two-sided, with a textured albedo.
 #include "gdr/scene/bsdf.h"
-#include "gdr/scene/warp.h"
+#include "cosine_lobe.h"
 
 namespace gdr {
 namespace {
@@ -12,19 +12,7 @@ public:
         : kd_(std::move(kd)), constant_(kd_->is_constant()), f_const_(kd_->mean() * kInvPi) {}
 
     std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
-        if (wo.z == 0.f) return std::nullopt;
-        Vec3 wi = warp::square_to_cosine_hemisphere(u);
-        if (wi.z <= 0.f) return std::nullopt;  // grazing sample: zero pdf, would divide by 0
-        const float pdf = warp::cosine_hemisphere_pdf(wi);
-        if (wo.z < 0.f) wi.z = -wi.z;  // two-sided: scatter back to wo's side
-        BsdfSample s;
-        s.wi = wi;
-        s.f = f(uv);
-        s.pdf = pdf;
-        s.eta = 1.f;
-        s.lobe = kReflection | kDiffuse;
-        s.roughness = 1.f;
-        return s;
+        return detail::sample_two_sided_cosine(wo, u, [&](const Vec3&) { return f(uv); });
     }
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
@@ -33,8 +21,7 @@ public:
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
-        if (!same_hemisphere(wo, wi)) return 0.f;
-        return abs_cos_theta(wi) * kInvPi;
+        return detail::two_sided_cosine_pdf(wo, wi);
     }
 
     BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {

@@ -8,7 +8,7 @@
 // Two-sided, sampled by the cosine like a Lambertian.
 #include "gdr/core/error.h"
 #include "gdr/scene/bsdf.h"
-#include "gdr/scene/warp.h"
+#include "cosine_lobe.h"
 
 namespace gdr {
 namespace {
@@ -21,18 +21,7 @@ public:
     }
 
     std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
-        if (wo.z == 0.f) return std::nullopt;
-        Vec3 wi = warp::square_to_cosine_hemisphere(u);
-        if (wi.z <= 0.f) return std::nullopt;
-        BsdfSample s;
-        s.pdf = warp::cosine_hemisphere_pdf(wi);
-        s.f = value(up(wo), wi, uv);
-        if (wo.z < 0.f) wi.z = -wi.z;
-        s.wi = wi;
-        s.eta = 1.f;
-        s.lobe = kReflection | kDiffuse;
-        s.roughness = 1.f;
-        return s;
+        return detail::sample_two_sided_cosine(wo, u, [&](const Vec3& wi_up) { return value(up(wo), wi_up, uv); });
     }
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
@@ -41,8 +30,7 @@ public:
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
-        if (!same_hemisphere(wo, wi)) return 0.f;
-        return abs_cos_theta(wi) * kInvPi;
+        return detail::two_sided_cosine_pdf(wo, wi);
     }
 
     uint32_t flags() const override { return kReflection | kDiffuse; }

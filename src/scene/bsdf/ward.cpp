@@ -15,68 +15,27 @@
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/microfacet.h"
 #include "gdr/scene/warp.h"
+#include "diffuse_glossy.h"
 
 namespace gdr {
 namespace {
 
-class Ward final : public Bsdf {
+class Ward final : public detail::DiffuseGlossy<Ward> {
 public:
     Ward(std::shared_ptr<Texture> kd, std::shared_ptr<Texture> ks, float alpha, WardVariant v, float scale)
-        : kd_(std::move(kd)), ks_(std::move(ks)), alpha_(alpha), variant_(v), scale_(scale) {
-        const auto avg = [](const Color& c) { return (c.r + c.g + c.b) / 3.f; };
-        const float wd = std::max(0.f, avg(kd_->mean())), ws = std::max(0.f, avg(ks_->mean()));
-        has_spec_ = max_component(ks_->mean()) > 0.f || !ks_->is_constant();
-        has_diffuse_ = max_component(kd_->mean()) > 0.f || !kd_->is_constant();
-        p_spec_ = wd + ws > 0.f ? ws / (wd + ws) : 0.f;
-        if (!has_spec_) p_spec_ = 0.f;
-        if (!has_diffuse_ && has_spec_) p_spec_ = 1.f;
-    }
+        : DiffuseGlossy(std::move(kd), std::move(ks), scale), alpha_(alpha), variant_(v) {}
 
-    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float u_lobe, const Vec2& u) const override {
-        if (wo.z == 0.f) return std::nullopt;
-        const float side = wo.z > 0.f ? 1.f : -1.f;
-        const Vec3 wo_up = up(wo);
-        Vec3 wi_up;
-        BsdfSample s;
-        if (u_lobe < p_spec_) {
-            const Vec3 h = beckmann_sample_normal(alpha_, u);
-            if (glm::dot(wo_up, h) <= 0.f) return std::nullopt;
-            wi_up = reflect(wo_up, h);
-            s.lobe = kReflection | kGlossy;
-            s.roughness = min_roughness();
-        } else {
-            wi_up = warp::square_to_cosine_hemisphere(u);
-            s.lobe = kReflection | kDiffuse;
-            s.roughness = 1.f;
-        }
-        if (wi_up.z <= 0.f) return std::nullopt;
-        s.pdf = pdf_up(wo_up, wi_up);
-        if (!(s.pdf > 0.f)) return std::nullopt;
-        s.f = eval_up(wo_up, wi_up, uv);
-        s.wi = Vec3(wi_up.x, wi_up.y, side * wi_up.z);
-        s.eta = 1.f;
-        return s;
-    }
-
-    Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
-        if (!same_hemisphere(wo, wi)) return Color(0.f);
-        return eval_up(up(wo), up(wi), uv);
-    }
-
-    float pdf(const Vec3& wo, const Vec3& wi, const Vec2&) const override {
-        if (!same_hemisphere(wo, wi)) return 0.f;
-        return pdf_up(up(wo), up(wi));
-    }
-
-    uint32_t flags() const override {
-        return kReflection | (has_diffuse_ ? kDiffuse : 0u) | (has_spec_ ? kGlossy : 0u);
-    }
-    Color albedo(const Vec2& uv) const override { return (kd_->eval(uv) + ks_->eval(uv)) * scale_; }
     /// Ward's alpha is the RMS slope, as Beckmann's, reported as the lobe's roughness.
     float min_roughness() const override { return has_spec_ ? std::min(alpha_, 1.f) : 1.f; }
 
 private:
-    static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
+    friend class detail::DiffuseGlossy<Ward>;
+
+    std::optional<Vec3> sample_glossy(const Vec3& wo_up, const Vec2& u) const {
+        const Vec3 h = beckmann_sample_normal(alpha_, u);
+        if (glm::dot(wo_up, h) <= 0.f) return std::nullopt;
+        return reflect(wo_up, h);
+    }
 
     float lobe(const Vec3& wo, const Vec3& wi) const {
         const Vec3 h = wo + wi;
@@ -111,12 +70,8 @@ private:
         return p;
     }
 
-    std::shared_ptr<Texture> kd_, ks_;
     float alpha_;
     WardVariant variant_;
-    float scale_;
-    float p_spec_ = 0.f;
-    bool has_spec_ = false, has_diffuse_ = false;
 };
 
 }  // namespace
