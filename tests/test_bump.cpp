@@ -166,7 +166,7 @@ SceneFile bumped_box(const BumpDir& dir, int film = 64) {
     write_ppm(dir.path + "/height.ppm", height);
     write_ppm(dir.path + "/normals.ppm", normals);
     const std::string file = dir.path + "/bumped.xml";
-    std::string xml = R"XML(<scene version="0.6.0">
+    const std::string xml = R"XML(<scene version="0.6.0">
   <sensor type="perspective"><float name="fov" value="90"/>
     <transform name="toWorld"><lookat origin="0, 1, 0.97" target="0, 1, 0" up="0, 1, 0"/></transform>
     <film type="hdrfilm"><integer name="width" value="FILM"/><integer name="height" value="FILM"/></film></sensor>
@@ -185,8 +185,16 @@ SceneFile bumped_box(const BumpDir& dir, int film = 64) {
       <bsdf type="roughplastic"><float name="alpha" value="0.2"/></bsdf></bsdf></shape>
 </scene>
 )XML";
-    for (size_t at; (at = xml.find("FILM")) != std::string::npos;) xml.replace(at, 4, std::to_string(film));
-    std::ofstream(file, std::ios::binary) << xml;
+    // Built piece by piece: GCC 12 warns (-Wrestrict, wrongly) on replace() in place here.
+    std::string text;
+    for (size_t from = 0;;) {
+        const size_t at = xml.find("FILM", from);
+        text.append(xml, from, at == std::string::npos ? std::string::npos : at - from);
+        if (at == std::string::npos) break;
+        text += std::to_string(film);
+        from = at + 4;
+    }
+    std::ofstream(file, std::ios::binary) << text;
     return load_scene_file(file);
 }
 
