@@ -202,7 +202,7 @@ def load_plugin(path=None):
     """load_plugin(path=None) -> str
 
     Loads a reconstructor plugin of the gdr tool (a shared library exporting gdr_plugin_abi and
-    gdr_plugin_register_reconstructors) and registers its reconstructors; returns the file. Without
+    gdr_plugin_register) and registers its reconstructors; returns the file. Without
     a path, the neural reconstructor's plugin is looked for in $GDR_PLUGIN_PATH's directories if
     set, else where pip or CMake put it beside the module. Loading a file twice does nothing.
     Raises gdr.ParameterError when none is found, gdr.InputError for a file that is not a plugin

@@ -50,6 +50,7 @@
 #include "gdr/io/render_header.h"
 #include "gdr/io/scene_file.h"
 #include "gdr/metrics.h"
+#include "gdr/plugin.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/shift/shift.h"
 #include "gdr_api_source.h"  // kApiSource: python/gdr_api.py, made by CMake
@@ -744,12 +745,12 @@ std::string load_plugin_file(const fs::path& file) {
         throw gdr::InputError("load_plugin: " + path + ": " + (e ? e : "dlopen failed"));
     }
     using AbiFn = const char* (*)();
-    using AddFn = void (*)(gdr::Registry<gdr::Reconstructor>*);
+    using AddFn = void (*)(gdr::PluginRegistries*);
     const auto abi = reinterpret_cast<AbiFn>(dlsym(handle, "gdr_plugin_abi"));
-    const auto add = reinterpret_cast<AddFn>(dlsym(handle, "gdr_plugin_register_reconstructors"));
+    const auto add = reinterpret_cast<AddFn>(dlsym(handle, "gdr_plugin_register"));
     if (!abi || !add) {
         dlclose(handle);
-        throw gdr::InputError("load_plugin: " + path + " exports no gdr_plugin_abi / gdr_plugin_register_reconstructors: "
+        throw gdr::InputError("load_plugin: " + path + " exports no gdr_plugin_abi / gdr_plugin_register: "
                               "not a gdr plugin");
     }
     if (std::string(abi()) != GDR_PLUGIN_ABI) {
@@ -758,7 +759,8 @@ std::string load_plugin_file(const fs::path& file) {
         throw gdr::InputError("load_plugin: " + path + " was built for " + theirs + ", this module is " + GDR_PLUGIN_ABI +
                               " (build and install the two together)");
     }
-    add(&gdr::reconstructor_registry());  // never unloaded: the registry holds its factories
+    gdr::PluginRegistries regs{&gdr::integrator_registry(), &gdr::reconstructor_registry(), &gdr::shift_registry()};
+    add(&regs);  // never unloaded: the registries hold its factories
     g_plugins[path] = true;
     return path;
 }

@@ -201,8 +201,11 @@ uintmax_t exr_file_size(const std::string& path) {
     std::error_code ec;
     const std::filesystem::file_status st = std::filesystem::status(path, ec);
     if (!std::filesystem::exists(st)) throw InputError(path + ": EXR file not found");
-    if (std::filesystem::is_directory(st)) throw InputError(path + ": not a file (it is a directory)");
-    if (!std::filesystem::is_regular_file(st)) throw InputError(path + ": not a file");
+    if (!std::filesystem::is_regular_file(st)) {
+        struct stat sb {};
+        const std::string what = ::stat(path.c_str(), &sb) == 0 ? file_kind(sb.st_mode) : "not a regular file";
+        throw InputError(path + ": " + what + ", not an EXR file");
+    }
     return std::filesystem::file_size(path, ec);
 }
 

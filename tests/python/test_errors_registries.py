@@ -40,13 +40,13 @@ class Exceptions(unittest.TestCase):
         xml = os.path.join(OUT, "param.xml")
         with open(xml, "w") as f:
             f.write('<scene version="3.0.0"><bsdf type="diffuse" id="grey">'
-                    '<rgb name="reflectance" value="$level"/></bsdf><emitter type="sunsky"/></scene>')
+                    '<rgb name="reflectance" value="$level"/></bsdf><emitter type="projector"/></scene>')
         with self.assertRaises(gdr.InputError) as cm:
             gdr.load_scene(xml)
         self.assertIn("$level", str(cm.exception))
         with self.assertRaises(gdr.InputError) as cm:
             gdr.load_scene(xml, defines={"level": 0.5})
-        self.assertIn("sunsky", str(cm.exception))
+        self.assertIn("projector", str(cm.exception))
         self.assertIn("--lenient", str(cm.exception))
         with self.assertRaises(gdr.InputError):
             gdr.load_scene(SMALL, defines={"level": 1})  # defines are for Mitsuba scenes only

@@ -94,7 +94,7 @@ class LoadDict(unittest.TestCase):
             with self.assertRaisesRegex(error, pattern):
                 gdr.load_dict(d)
 
-        bad(lambda d: d.update(lights=[]), gdr.InputError, "lights")
+        bad(lambda d: d.update(lamps=[]), gdr.InputError, "lamps")
         bad(lambda d: d["camera"].update(zoom=2), gdr.InputError, "zoom")
         bad(lambda d: d["meshes"][0].update(colour=1), gdr.InputError, "colour")
         bad(lambda d: d["meshes"][0].update(vertices=FLOOR_V.astype(np.complex64)), gdr.ParameterError,

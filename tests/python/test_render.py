@@ -26,7 +26,7 @@ MITSUBA = """<scene version="3.0.0">
   <shape type="rectangle"><boolean name="flip_normals" value="true"/>
     <transform name="to_world"><scale value="3"/><translate z="6"/></transform>
     <emitter type="area"><rgb name="radiance" value="4"/></emitter></shape>
-  <emitter type="sunsky"/>
+  <emitter type="projector"/>
 </scene>
 """
 
@@ -75,7 +75,7 @@ class RenderMatchesTheTool(unittest.TestCase):
         path = os.path.join(OUT, "rect.exr")
         run_cli("render", xml, "-D", "level=0.5", "--lenient", "--spp", "2", "-o", path)
         scene = gdr.load_scene(xml, defines={"level": 0.5}, lenient=True)
-        self.assertTrue(any("sunsky" in w for w in scene.warnings), scene.warnings)
+        self.assertTrue(any("projector" in w for w in scene.warnings), scene.warnings)
         img = gdr.render(scene, spp=2)
         assert_same_layers(self, gdr.read_exr(path), img)
         # The define reached the scene: the default reflectance gives a darker image.
