@@ -145,8 +145,8 @@ public:
     explicit RegularFileIn(const std::string& path) : Imf::IStream(path.c_str()) {
         struct stat st {};
         // Before opening: opening some devices does something.
-        if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
-            throw InputError(path + ": " + file_kind(st.st_mode) + ", not an EXR file");
+        if (::stat(path.c_str(), &st) != 0) throw InputError(path + ": EXR file not found");
+        if (!S_ISREG(st.st_mode)) throw InputError(path + ": " + file_kind(st.st_mode) + ", not an EXR file");
         fd_ = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
         if (fd_ < 0) throw InputError(path + ": cannot open: " + std::strerror(errno));
         if (::fstat(fd_, &st) != 0 || !S_ISREG(st.st_mode)) {
@@ -172,6 +172,8 @@ public:
         pos_ += uint64_t(n);
         return pos_ < size_;
     }
+    /// Size of the file (bytes) when it was opened.
+    uint64_t size() const { return size_; }
     uint64_t tellg() override { return pos_; }
     void seekg(uint64_t pos) override { pos_ = pos; }
 
@@ -192,21 +194,6 @@ std::map<std::string, std::string> header_metadata(const Imf::Header& header) {
         out[ours ? key.substr(std::string(kMetaPrefix).size()) : key] = s->value();
     }
     return out;
-}
-
-/// Size (bytes) of the EXR at `path`; InputError naming it unless it is a
-/// regular file (OpenEXR would block for ever opening a FIFO, and read a
-/// device until memory runs out).
-uintmax_t exr_file_size(const std::string& path) {
-    std::error_code ec;
-    const std::filesystem::file_status st = std::filesystem::status(path, ec);
-    if (!std::filesystem::exists(st)) throw InputError(path + ": EXR file not found");
-    if (!std::filesystem::is_regular_file(st)) {
-        struct stat sb {};
-        const std::string what = ::stat(path.c_str(), &sb) == 0 ? file_kind(sb.st_mode) : "not a regular file";
-        throw InputError(path + ": " + what + ", not an EXR file");
-    }
-    return std::filesystem::file_size(path, ec);
 }
 
 /// Largest ratio of decoded float bytes to file bytes that read_exr accepts
@@ -272,9 +259,9 @@ void write_exr(const std::string& path, const FrameBuffer& fb) {
 }
 
 FrameBuffer read_exr(const std::string& path) {
-    const uintmax_t file_bytes = exr_file_size(path);
     try {
         RegularFileIn stream(path);
+        const uintmax_t file_bytes = stream.size();
         Imf::InputFile file(stream, Imf::globalThreadCount());
         const Imf::Header& header = file.header();
         const Imath::Box2i dw = header.dataWindow();
@@ -346,7 +333,6 @@ FrameBuffer read_exr(const std::string& path) {
 }
 
 ExrHeader read_exr_header(const std::string& path) {
-    exr_file_size(path);
     try {
         // The header alone: Imf::InputFile reads no pixels until asked to.
         RegularFileIn stream(path);
