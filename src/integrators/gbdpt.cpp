@@ -52,17 +52,18 @@
 #include "gdr/path/connection.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/trace.h"
+#include "gdr/integrators/gradient_film.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/shift/bidir.h"
 #include "gdr/shift/offset_path.h"
-#include "gradient_slots.h"
 
 namespace gdr {
 
 namespace {
 
-using detail::kAux, detail::kDirect, detail::kDirs, detail::kDx, detail::kDy, detail::kGrad, detail::kGradSlot,
-    detail::kSelf, detail::kSplat, detail::kSplatSlot;
+constexpr int kDirs = kNeighbours;
+constexpr const int* kDx = kNeighbourDx;
+constexpr const int* kDy = kNeighbourDy;
 constexpr int kNone = kNoDepth;
 
 // First depth k >= 1 of a pair of connectable vertices z_k, z_{k+1} of a
@@ -181,16 +182,7 @@ protected:
                                          "' is not: paths through it to the light could be lost; render with bdpt or gpt");
     }
 
-    std::vector<SlotSpec> slots() const override {
-        std::vector<SlotSpec> s{{"self", 3, true}};
-        for (int d = 0; d < kDirs; ++d) s.push_back({kGradSlot[d], 3, true});
-        for (int d = 0; d < kDirs; ++d) s.push_back({kSplatSlot[d], 3, true});
-        s.push_back({"direct", 3, false});
-        s.push_back({"albedo", 3, false});
-        s.push_back({"normal", 3, false});
-        s.push_back({"depth", 1, false});
-        return s;
-    }
+    std::vector<SlotSpec> slots() const override { return layout_.slots(); }
     // Light tracing's share: the primal (0) and the gradient towards each neighbour (1 + d).
     int splat_layers() const override { return 1 + kDirs; }
     int batch_size() const override { return batch_; }
@@ -206,54 +198,9 @@ protected:
     }
 
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
-        const int W = out.width(), H = out.height();
-        Image primal(W, H, 3), primal_var(W, H, 3), dx(W, H, 3), dy(W, H, 3), dx_var(W, H, 3), dy_var(W, H, 3);
-        const int self = acc.slot("self");
-        int splat[kDirs], grad[kDirs];
-        for (int d = 0; d < kDirs; ++d) splat[d] = acc.slot(kSplatSlot[d]), grad[d] = acc.slot(kGradSlot[d]);
-        // Each one-sided gradient: the pixel's own samples plus the light tracing that landed in it.
-        const auto g = [&](int d, int x, int y) { return acc.mean_rgb(grad[d], x, y) + acc.splat_mean(1 + d, x, y); };
-        const auto gv = [&](int d, int x, int y) {
-            return acc.variance_rgb(grad[d], x, y) + acc.splat_variance(1 + d, x, y);
-        };
-        tbb::parallel_for(0, H, [&](int y) {
-            for (int x = 0; x < W; ++x) {
-                Color p = acc.mean_rgb(self, x, y) + acc.splat_mean(0, x, y);
-                Color pv = acc.variance_rgb(self, x, y) + acc.splat_variance(0, x, y);
-                for (int d = 0; d < kDirs; ++d) {
-                    const int qx = x - kDx[d], qy = y - kDy[d];
-                    if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-                    p += acc.mean_rgb(splat[d], qx, qy);
-                    pv += acc.variance_rgb(splat[d], qx, qy);
-                }
-                primal.set_rgb(x, y, p);
-                primal_var.set_rgb(x, y, pv);
-                if (x + 1 < W) {
-                    dx.set_rgb(x, y, g(0, x, y) - g(1, x + 1, y));
-                    dx_var.set_rgb(x, y, gv(0, x, y) + gv(1, x + 1, y));
-                }
-                if (y + 1 < H) {
-                    dy.set_rgb(x, y, g(2, x, y) - g(3, x, y + 1));
-                    dy_var.set_rgb(x, y, gv(2, x, y) + gv(3, x, y + 1));
-                }
-            }
-        });
-        std::vector<Image> im = acc.images({{"direct"}, {"albedo"}, {"normal"}, {"depth"}});
-        Image color(W, H, 3);
-        for (int y = 0; y < H; ++y)
-            for (int x = 0; x < W; ++x) color.set_rgb(x, y, primal.rgb(x, y) + im[0].rgb(x, y));
-        out.set("color", std::move(color));
-        out.set("primal", std::move(primal));
-        out.set("dx", std::move(dx));
-        out.set("dy", std::move(dy));
-        out.set("direct", std::move(im[0]));
-        out.set("primal_variance", std::move(primal_var));
-        out.set("dx_variance", std::move(dx_var));
-        out.set("dy_variance", std::move(dy_var));
-        out.set("albedo", std::move(im[1]));
-        out.set("normal", std::move(im[2]));
-        out.set("depth", std::move(im[3]));
-        // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
+        // Light tracing's shares landed in the splat layers: the primal's in
+        // layer 0, each one-sided gradient's in layer 1 + d.
+        set_gradient_layers(out, gather_gradients(acc, layout_, true), acc, layout_);
         if (acc.derived) recon_.add(out, acc.spp, "gbdpt");
     }
 
@@ -294,7 +241,8 @@ private:
         trace_light_subpath(scene, sampler, light_opt, S.light);
         const Subpath& light = S.light;
         rays += cam.rays + light.rays;
-        write_aux(cam, o);
+        GradientRecord rec(o, layout_);
+        write_aux(cam, rec);
         // A camera ray that misses still leaves light tracing (t = 1) its strategies.
 
         bool inside[kDirs];
@@ -311,9 +259,6 @@ private:
         S.lflag.resize(light.v.size());
         for (size_t j = 0; j < light.v.size(); ++j) S.lflag[j] = j == 0 || connectable(light.v[j]);
 
-        const auto put = [&](int slot, const Color& c) {
-            o[3 * slot] += c.r, o[3 * slot + 1] += c.g, o[3 * slot + 2] += c.b;
-        };
         const int s_max = std::max(light.size(), scene.has_lights() ? 1 : 0);
         for (int t = 1; t <= int(cam.size()); ++t)
             for (int s = 0; s <= s_max; ++s) {
@@ -321,13 +266,12 @@ private:
                 if (n < 2 || (s == 1 && t == 1)) continue;
                 if (max_depth_ > 0 && n - 1 > max_depth_) break;
                 if (one_ && (s != only_.s || t != only_.t)) continue;
-                strategy(scene, S, job, s, t, inside, put, rays);
+                strategy(scene, S, job, s, t, inside, rec, rays);
             }
     }
 
-    template <class Put>
-    void strategy(const Scene& scene, Scratch& S, SampleJob& job, int s, int t, const bool* inside, const Put& put,
-                  uint64_t& rays) const {
+    void strategy(const Scene& scene, Scratch& S, SampleJob& job, int s, int t, const bool* inside,
+                  GradientRecord& rec, uint64_t& rays) const {
         const CameraPath& cam = S.cam;
         const Subpath& light = S.light;
         const Sampler& sampler = job.sampler;
@@ -371,7 +315,7 @@ private:
         if (is_black(vx) && !cx.occluded) return;
         const Vec2 film_x = cx.film;  // light tracing's raster point (its value is not 0 here)
         if (n == 2) {
-            put(kDirect, vx);  // directly visible emitters stay out of the gradients
+            rec.add_direct(vx);  // directly visible emitters stay out of the gradients
             return;
         }
         connection_densities(scene, light, cam, {s, t}, lend, S.dx);
@@ -396,7 +340,7 @@ private:
                 return 1.0 / sum_over(S.rx, S.px);
             };
             const auto add_base = [&](double w) {
-                if (t >= 2) put(kSelf, float(0.25 * w) * vx);
+                if (t >= 2) rec.add_self(float(0.25 * w) * vx);
                 else if (job.splats) job.splats->add(film_x, float(0.25 * w) * vx, 0);
             };
             if (!has_neighbour) {
@@ -511,7 +455,7 @@ private:
                 if (!is_black(vx)) {
                     const double w = base_only_weight();
                     add_base(w);
-                    if (t >= 2) put(kGrad + d, float(-w) * vx);
+                    if (t >= 2) rec.add_gradient(d, float(-w) * vx);
                     else if (job.splats) job.splats->add(film_x, float(-w) * vx, 1 + d);
                 }
                 continue;
@@ -536,9 +480,9 @@ private:
             const double w = 1.0 / (sum_over(S.rx, S.px) + R * sum_over(S.ry, S.py));
             if (!std::isfinite(w)) continue;
             if (t >= 2) {
-                put(kSelf, float(0.25 * w) * vx);
-                put(kSplat + d, float(0.25 * w) * vy);
-                put(kGrad + d, float(w) * (vy - vx));
+                rec.add_self(float(0.25 * w) * vx);
+                rec.add_share(d, float(0.25 * w) * vy);
+                rec.add_gradient(d, float(w) * (vy - vx));
             } else if (job.splats) {
                 job.splats->add(film_x, float(0.25 * w) * vx, 0);
                 job.splats->add(film_x + delta, float(0.25 * w) * vy, 0);
@@ -548,19 +492,16 @@ private:
     }
 
     // Albedo and normal at the first connectable camera vertex, depth of the first hit.
-    void write_aux(const CameraPath& cam, float* o) const {
+    void write_aux(const CameraPath& cam, GradientRecord& rec) const {
         if (cam.size() < 2 || cam.v[1].infinite) return;
-        float* aux = o + 3 * kAux;
-        aux[6] = cam.v[1].si.t;
+        rec.set_depth(cam.v[1].si.t);
         for (int k = 1; k < int(cam.size()); ++k) {
             const Vertex& v = cam.v[k];
             if (v.infinite) return;
             if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
                 k + 1 < int(cam.size()))
                 continue;
-            const Color a = v.si.material->bsdf->albedo(v.si.uv);
-            aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
-            aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
+            rec.set_surface(v.si.material->bsdf->albedo(v.si.uv), v.si.frame.n);
             return;
         }
     }
@@ -575,6 +516,7 @@ private:
     Connection only_;
     int batch_ = 16;
     GradientReconstructions recon_;
+    GradientLayout layout_ = GradientLayout::make();
     std::string shift_params_;  // the shift.* parameters as "key=value" lines
 };
 

@@ -11,22 +11,21 @@
 #include <tbb/parallel_for.h>
 
 #include "gdr/integrators/gpt.h"
+#include "gdr/integrators/gradient_film.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/trace.h"
 #include "gdr/shift/shift.h"
-#include "gradient_slots.h"
 
 namespace gdr::detail {
 
-// The optional base-only primal follows the slots of gradient_slots.h at this float.
-constexpr int kBaseFloat = 3 * kAux + 7;
-
+constexpr int kDirs = kNeighbours;
+constexpr const int* kDx = kNeighbourDx;
+constexpr const int* kDy = kNeighbourDy;
 
 /// One G-PT render's primal and gradient estimates and their per-sample
 /// variances (radiance, radiance^2), from the slots of one set of G-PT samples.
-struct GradientHalf {
-    Image primal, primal_var, dx, dy, dx_var, dy_var;
+struct GradientHalf : GradientEstimates {
     /// With combined shifts: each shift's own gradients and their variances
     /// (index 0: the first shift), of which dx, dy are the combination.
     Image shift_dx[2], shift_dy[2], shift_dx_var[2], shift_dy_var[2];
@@ -68,6 +67,15 @@ public:
         batch_ = batch_param(p, who_, kMaxBatch);
         recon_ = GradientReconstructions::from(p, who_);
         if (!(config_.threshold >= 0.f)) throw ParameterError(who_ + ": threshold must be >= 0");
+        // Where each slot beyond the standard ones starts in a sample's record.
+        const std::vector<SlotSpec> record = half_slots("");
+        for (const SlotSpec& spec : record) half_floats_ += spec.channels;
+        if (!primal_both_) base_float_ = slot_offset(record, "base");
+        if (shift2_)
+            for (int d = 0; d < kDirs; ++d) {
+                second_float_[d] = slot_offset(record, std::string("2") + GradientLayout::gradient_name(d));
+                cross_float_[d] = slot_offset(record, std::string("x") + GradientLayout::gradient_name(d));
+            }
     }
 
     std::string describe() const override {
@@ -85,16 +93,10 @@ protected:
 
     /// The slots of one set of G-PT samples, each name prefixed with
     /// `prefix`: half_floats() floats of a sample, in the order
-    /// sample_batch() writes them.
+    /// sample_batch() writes them: the film's standard slots, then this
+    /// integrator's own.
     std::vector<SlotSpec> half_slots(const std::string& prefix) const {
-        // Order fixes the offsets sample() writes to (kSelf, kGrad, ...).
-        std::vector<SlotSpec> s{{prefix + "self", 3, true}};
-        for (int d = 0; d < kDirs; ++d) s.push_back({prefix + kGradSlot[d], 3, true});
-        for (int d = 0; d < kDirs; ++d) s.push_back({prefix + kSplatSlot[d], 3, true});
-        s.push_back({prefix + "direct", 3, false});
-        s.push_back({prefix + "albedo", 3, false});
-        s.push_back({prefix + "normal", 3, false});
-        s.push_back({prefix + "depth", 1, false});
+        std::vector<SlotSpec> s = GradientLayout::make(prefix).slots();
         // The base-only primal is accumulated only where it is the output: a
         // slot costs 48 bytes a pixel of accumulators, zeroed every render.
         if (!primal_both_) s.push_back({prefix + "base", 3, true});
@@ -102,15 +104,13 @@ protected:
             // The second shift's one-sided gradients, and the products of the
             // two shifts' (their covariance, which the combination needs:
             // both share the base path's f(x)).
-            for (int d = 0; d < kDirs; ++d) s.push_back({prefix + "2" + kGradSlot[d], 3, true});
-            for (int d = 0; d < kDirs; ++d) s.push_back({prefix + "x" + kGradSlot[d], 3, false});
+            for (int d = 0; d < kDirs; ++d) s.push_back({prefix + "2" + GradientLayout::gradient_name(d), 3, true});
+            for (int d = 0; d < kDirs; ++d) s.push_back({prefix + "x" + GradientLayout::gradient_name(d), 3, false});
         }
         return s;
     }
     /// Floats one sample writes for half_slots().
-    int half_floats() const { return extra_float() + (shift2_ ? 24 : 0); }
-    // First float of the combined shifts' slots.
-    int extra_float() const { return kBaseFloat + (primal_both_ ? 0 : 3); }
+    int half_floats() const { return half_floats_; }
 
     void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
         SampleJob job{px, py, sampler};
@@ -190,47 +190,8 @@ protected:
     /// and its neighbours' offsets, and dx(x) = I(x+1) - I(x) combines the
     /// pair shifted each way across the edge.
     GradientHalf finalize_half(const Accumulated& acc, const std::string& prefix) const {
-        const int W = acc.width, H = acc.height;
         GradientHalf h;
-        for (Image* im : {&h.primal, &h.primal_var, &h.dx, &h.dy, &h.dx_var, &h.dy_var}) *im = Image(W, H, 3);
-        const int self = acc.slot(prefix + "self");
-        int splat[kDirs], grad[kDirs];
-        for (int d = 0; d < kDirs; ++d)
-            splat[d] = acc.slot(prefix + kSplatSlot[d]), grad[d] = acc.slot(prefix + kGradSlot[d]);
-        const int gpx = grad[0], gmx = grad[1], gpy = grad[2], gmy = grad[3];
-        // Straight from the sums: the splat and one-sided gradient slots feed
-        // only these layers, so they never become images of their own.
-        // A neighbour's terms are means over its own sample count: their
-        // per-sample variance is scaled by count(pixel) / count(neighbour), so
-        // that every variance layer over the pixel's own count ("spp" layer)
-        // is its estimate's variance under adaptive sampling too (1 otherwise).
-        const auto ratio = [&](int x, int y, int qx, int qy) {
-            return float(double(acc.count(x, y)) / double(acc.count(qx, qy)));
-        };
-        tbb::parallel_for(0, H, [&](int y) {
-            for (int x = 0; x < W; ++x) {
-                Color p = acc.mean_rgb(self, x, y), pv = acc.variance_rgb(self, x, y);
-                // Each neighbour q = (x,y) - step splatted its offset towards (x,y).
-                for (int d = 0; d < kDirs; ++d) {
-                    const int qx = x - kDx[d], qy = y - kDy[d];
-                    if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-                    p += acc.mean_rgb(splat[d], qx, qy);
-                    pv += ratio(x, y, qx, qy) * acc.variance_rgb(splat[d], qx, qy);
-                }
-                h.primal.set_rgb(x, y, p);
-                h.primal_var.set_rgb(x, y, pv);
-                if (x + 1 < W) {
-                    h.dx.set_rgb(x, y, acc.mean_rgb(gpx, x, y) - acc.mean_rgb(gmx, x + 1, y));
-                    h.dx_var.set_rgb(x, y, acc.variance_rgb(gpx, x, y) +
-                                               ratio(x, y, x + 1, y) * acc.variance_rgb(gmx, x + 1, y));
-                }
-                if (y + 1 < H) {
-                    h.dy.set_rgb(x, y, acc.mean_rgb(gpy, x, y) - acc.mean_rgb(gmy, x, y + 1));
-                    h.dy_var.set_rgb(x, y, acc.variance_rgb(gpy, x, y) +
-                                               ratio(x, y, x, y + 1) * acc.variance_rgb(gmy, x, y + 1));
-                }
-            }
-        });
+        static_cast<GradientEstimates&>(h) = gather_gradients(acc, GradientLayout::make(prefix));
         if (shift2_) combine_shifts(acc, prefix, h);
         if (!primal_both_) {
             std::vector<Image> base = acc.images({{prefix + "base"}, {prefix + "base", true}});
@@ -252,12 +213,13 @@ protected:
         const int W = acc.width, H = acc.height;
         int g2[kDirs], gx[kDirs];
         for (int d = 0; d < kDirs; ++d)
-            g2[d] = acc.slot(prefix + "2" + kGradSlot[d]), gx[d] = acc.slot(prefix + "x" + kGradSlot[d]);
+            g2[d] = acc.slot(prefix + "2" + GradientLayout::gradient_name(d)),
+            gx[d] = acc.slot(prefix + "x" + GradientLayout::gradient_name(d));
         h.shift_dx[0] = h.dx, h.shift_dy[0] = h.dy, h.shift_dx_var[0] = h.dx_var, h.shift_dy_var[0] = h.dy_var;
         for (Image* im : {&h.shift_dx[1], &h.shift_dy[1], &h.shift_dx_var[1], &h.shift_dy_var[1]}) *im = Image(W, H, 3);
         Image cov_x(W, H, 3), cov_y(W, H, 3);  // per-sample covariances of the two shifts' gradients
-        const int g1[kDirs] = {acc.slot(prefix + kGradSlot[0]), acc.slot(prefix + kGradSlot[1]),
-                               acc.slot(prefix + kGradSlot[2]), acc.slot(prefix + kGradSlot[3])};
+        int g1[kDirs];
+        for (int d = 0; d < kDirs; ++d) g1[d] = acc.slot(prefix + GradientLayout::gradient_name(d));
         // Per-sample covariance of the two shifts' one-sided gradients at (x, y) in direction d.
         const auto cov = [&](int d, int x, int y) {
             const double n = double(acc.count(x, y));
@@ -309,20 +271,8 @@ protected:
     }
 
     void finalize(const Accumulated& acc, FrameBuffer& out) const override {
-        const int W = out.width(), H = out.height();
         GradientHalf h = finalize_half(acc, "");
-        std::vector<Image> im = acc.images({{"direct"}, {"albedo"}, {"normal"}, {"depth"}});
-        Image color(W, H, 3);
-        for (int y = 0; y < H; ++y)
-            for (int x = 0; x < W; ++x) color.set_rgb(x, y, h.primal.rgb(x, y) + im[0].rgb(x, y));
-        out.set("color", std::move(color));
-        out.set("primal", std::move(h.primal));
-        out.set("dx", std::move(h.dx));
-        out.set("dy", std::move(h.dy));
-        out.set("direct", std::move(im[0]));
-        out.set("primal_variance", std::move(h.primal_var));
-        out.set("dx_variance", std::move(h.dx_var));
-        out.set("dy_variance", std::move(h.dy_var));
+        set_gradient_layers(out, std::move(static_cast<GradientEstimates&>(h)), acc, layout_);
         for (int i = 0; i < 2 && shift2_; ++i) {
             // Each shift's own gradients, as a render with that shift alone would write them.
             const std::string& n = combined_names_[i];
@@ -331,14 +281,8 @@ protected:
             out.set("dx_" + n + "_variance", std::move(h.shift_dx_var[i]));
             out.set("dy_" + n + "_variance", std::move(h.shift_dy_var[i]));
         }
-        // The weighted reconstruction reads each pixel's own count.
-        if (acc.adaptive()) out.set("spp", acc.count_image());
-        out.set("albedo", std::move(im[1]));
-        out.set("normal", std::move(im[2]));
-        out.set("depth", std::move(im[3]));
         // Edges with a primal-only pixel have no gradient estimate.
         if (masked()) fill_masked_gradients(out);
-        // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
         if (acc.derived) recon_.add(out, acc.spp, who_);
     }
 
@@ -362,9 +306,7 @@ private:
     void estimate(const Scene& scene, int px, int py, const CameraPath& path, const OffsetPath* offsets,
                   const OffsetPath* offsets2, const bool* inside, BaseTerms& terms, float* out) const {
         if (path.size() <= 1) return;
-        auto put = [&](int slot, const Color& c) {
-            out[3 * slot] += c.r, out[3 * slot + 1] += c.g, out[3 * slot + 2] += c.b;
-        };
+        GradientRecord rec(out, layout_);
         compute_base_terms(scene, path, mis_.heuristic, terms);
         // The base alone (plain path-tracing MIS) is needed for the base-only primal and at the border.
         PairEstimate alone;
@@ -373,14 +315,11 @@ private:
             if (!have_alone) alone = evaluate_pair(scene, path, terms, nullptr, mis_), have_alone = true;
             return alone;
         };
-        if (!primal_both_) {
-            const Color b = base_alone().base;
-            out[kBaseFloat] = b.r, out[kBaseFloat + 1] = b.g, out[kBaseFloat + 2] = b.b;
-        }
+        if (!primal_both_) rec.set(base_float_, base_alone().base);
         for (int d = 0; d < kDirs; ++d) {
             if (!inside[d]) {
                 // No neighbour to share with: the base alone estimates its pixel.
-                put(kSelf, 0.25f * base_alone().base);
+                rec.add_alone(base_alone().base);
                 continue;
             }
             GradientMis mis = mis_;
@@ -397,34 +336,27 @@ private:
                 mis.sample_ratio = dp / (dp + dq);
             }
             const PairEstimate e = evaluate_pair(scene, path, terms, &offsets[d], mis);
-            put(kSelf, 0.25f * e.base);
-            put(kGrad + d, e.gradient);
-            put(kSplat + d, 0.25f * e.offset);
+            rec.add_pair(d, e.base, e.offset, e.gradient);
             if (offsets2) {
                 // The second shift's gradient of the same base path (its primal
                 // share is not used: the first shift's pairs estimate the primal).
                 const Color g2 = evaluate_pair(scene, path, terms, &offsets2[d], mis).gradient;
-                float* o = out + extra_float();
-                o[3 * d] = g2.r, o[3 * d + 1] = g2.g, o[3 * d + 2] = g2.b;
-                o[12 + 3 * d] = e.gradient.r * g2.r, o[13 + 3 * d] = e.gradient.g * g2.g;
-                o[14 + 3 * d] = e.gradient.b * g2.b;
+                rec.set(second_float_[d], g2);
+                rec.set(cross_float_[d], Color{e.gradient.r * g2.r, e.gradient.g * g2.g, e.gradient.b * g2.b});
             }
         }
-        put(kDirect, terms.v[1].emitted);
+        rec.add_direct(terms.v[1].emitted);
         // Auxiliary features at the first vertex a reconstruction can use (first connectable one).
-        float* aux = out + 3 * kAux;
         for (size_t k = 1; k < path.size(); ++k) {
             const Vertex& v = path.v[k];
             if (v.infinite) break;  // left the scene: no surface
             if (!is_connectable(v.si.material->min_roughness, 0.5f, ShiftConfig{config_.threshold, false}) &&
                 &v != &path.v.back())
                 continue;
-            const Color a = v.si.material->bsdf->albedo(v.si.uv);
-            aux[0] = a.r, aux[1] = a.g, aux[2] = a.b;
-            aux[3] = v.si.frame.n.x, aux[4] = v.si.frame.n.y, aux[5] = v.si.frame.n.z;
+            rec.set_surface(v.si.material->bsdf->albedo(v.si.uv), v.si.frame.n);
             break;
         }
-        aux[6] = path.v[1].infinite ? 0.f : path.v[1].si.t;  // a camera ray that left the scene: 0, as pt writes
+        rec.set_depth(path.v[1].infinite ? 0.f : path.v[1].si.t);  // a camera ray that left the scene: 0, as pt writes
     }
 
     std::unique_ptr<Shift> shift_;
@@ -439,6 +371,10 @@ private:
     GradientReconstructions recon_;
     std::string shift_params_;  // the shift.* parameters as "key=value" lines
     std::string who_;
+    GradientLayout layout_ = GradientLayout::make();  // the standard slots' offsets in a half's record
+    int half_floats_ = 0;                             // floats of a half's record
+    int base_float_ = -1;                             // the base-only primal's (primal=base), else -1
+    int second_float_[kDirs] = {}, cross_float_[kDirs] = {};  // combined shifts: the second's gradients, the products
 };
 
 }  // namespace gdr::detail
