@@ -1,5 +1,7 @@
 // G-PT cost and gradient noise against PT, and G-BDPT's cost against BDPT,
 // measured in one run.
+//  0. Peak memory of a 2048x2048 G-PT render (1 spp, the default
+//     reconstructions), in a child process of its own, in bytes per pixel.
 //  1. Cost of one G-PT sample relative to one PT sample (medians of interleaved
 //     runs), in wall-clock time and in process CPU time (user + system, all
 //     threads): on a shared virtual machine other guests inflate the first.
@@ -21,6 +23,10 @@
 #include <mutex>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "gdr/cli/commands.h"
 #include "gdr/core/error.h"
@@ -53,6 +59,7 @@ double grey(const Image& img, int x, int y) {
 }  // namespace
 
 int run(const std::string& path, int repeats);
+void peak_memory(const std::string& path);
 
 int main(int argc, char** argv) {
     try {
@@ -64,6 +71,9 @@ int main(int argc, char** argv) {
         int repeats = 3;
         if (argc > 2) repeats = int(cli::ArgReader::parse_int("repeats", argv[2], 1, 10000));
         std::printf("machine: %s\n", bench::machine_description().c_str());
+        // First, while this process has started no threads: a child forked
+        // from a process with running TBB workers could not start its own.
+        peak_memory(path);
         return run(path, repeats);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "bench_gpt: error: %s\n", e.what());
@@ -183,4 +193,37 @@ int run(const std::string& path, int repeats) {
                 "sampling (medians of %d interleaved runs)\n",
                 median(g_cpu), median(g_marginal), median(g_sampling), repeats);
     return 0;
+}
+
+// Peak resident memory of one 2048x2048 G-PT render of 1 spp with the
+// default reconstructions, from a child process that does nothing else (the
+// parent's own peak would include the renders above). The sample count does
+// not change the accumulators' size.
+void peak_memory(const std::string& path) {
+    constexpr int kSide = 2048;
+    std::fflush(stdout);
+    const pid_t child = fork();
+    if (child < 0) throw RuntimeFailure("bench_gpt: fork failed for the peak-memory render");
+    if (child == 0) {
+        try {
+            SceneFile sf = load_scene_file(path);
+            set_resolution(sf, kSide, kSide);
+            auto gpt = integrator_registry().create("gpt", Params());
+            RenderSettings st;
+            st.spp = 1;
+            FrameBuffer fb;
+            gpt->render(*sf.scene, st, fb);
+            _exit(0);
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "bench_gpt: peak-memory render: %s\n", e.what());
+            _exit(1);
+        }
+    }
+    int status = 0;
+    rusage use{};
+    if (wait4(child, &status, 0, &use) != child || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        throw RuntimeFailure("bench_gpt: the peak-memory render failed");
+    const double bytes = double(use.ru_maxrss) * 1024.0;  // ru_maxrss is in KiB on Linux
+    std::printf("peak memory of a %dx%d gpt render (1 spp, default reconstructions): %.2f GB, %.0f bytes a pixel\n",
+                kSide, kSide, bytes * 1e-9, bytes / (double(kSide) * kSide));
 }

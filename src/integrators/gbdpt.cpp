@@ -201,7 +201,6 @@ protected:
         // Light tracing's shares landed in the splat layers: the primal's in
         // layer 0, each one-sided gradient's in layer 1 + d.
         set_gradient_layers(out, gather_gradients(acc, layout_, true), acc, layout_);
-        if (acc.derived) recon_.add(out, acc.spp, "gbdpt");
     }
 
 public:

@@ -283,7 +283,6 @@ protected:
         }
         // Edges with a primal-only pixel have no gradient estimate.
         if (masked()) fill_masked_gradients(out);
-        if (acc.derived) recon_.add(out, acc.spp, who_);
     }
 
     /// The reconstructions stored beside the primal and gradients.

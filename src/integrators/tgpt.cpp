@@ -130,8 +130,6 @@ protected:
         out.set("albedo", mean(im[2], im[3]));
         out.set("normal", mean(im[4], im[5]));
         out.set("depth", mean(im[6], im[7]));
-        // Last: a reconstruction may read any layer (neural: albedo, normal, depth).
-        if (acc.derived) reconstructions().add(out, acc.spp, who());
     }
 
 private:

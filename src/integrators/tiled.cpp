@@ -26,40 +26,52 @@ constexpr int kTile = 16;
 constexpr int kMaxBatch = 16;  // most jobs per sample_batch() call
 using Clock = std::chrono::steady_clock;
 
-// Uninitialised doubles on transparent huge pages where the kernel offers them:
+// Uninitialised values on transparent huge pages where the kernel offers them:
 // a 1280x720 render accumulates ~100 MB, and faulting that in as 4 KiB pages
 // costs more than a sample per pixel on a virtual machine.
-struct HugeDoubles {
-    explicit HugeDoubles(size_t n) : bytes((std::max<size_t>(n, 1) * sizeof(double) + kHuge - 1) / kHuge * kHuge) {
+template <typename T>
+struct HugeArray {
+    explicit HugeArray(size_t n) : bytes((std::max<size_t>(n, 1) * sizeof(T) + kHuge - 1) / kHuge * kHuge) {
         void* p = std::aligned_alloc(kHuge, bytes);
         if (!p) throw std::bad_alloc();
 #ifdef MADV_HUGEPAGE
         madvise(p, bytes, MADV_HUGEPAGE);  // a hint; failure just means small pages
 #endif
-        data = static_cast<double*>(p);
+        data = static_cast<T*>(p);
     }
-    ~HugeDoubles() { std::free(data); }
-    HugeDoubles(const HugeDoubles&) = delete;
-    HugeDoubles& operator=(const HugeDoubles&) = delete;
-    double& operator[](size_t i) { return data[i]; }
+    ~HugeArray() { std::free(data); }
+    HugeArray(const HugeArray&) = delete;
+    HugeArray& operator=(const HugeArray&) = delete;
+    T& operator[](size_t i) { return data[i]; }
     static constexpr size_t kHuge = size_t(2) << 20;
     size_t bytes;
-    double* data = nullptr;
+    T* data = nullptr;
 };
+using HugeFloats = HugeArray<float>;
+using HugeDoubles = HugeArray<double>;
 }  // namespace
 
 struct TiledIntegrator::Buffers {
-    std::unique_ptr<HugeDoubles> sum, sum2;
+    std::unique_ptr<HugeFloats> mean, m2;
     std::unique_ptr<HugeDoubles> splat_sum, splat_sum2;  // per pixel and splat layer, 3 channels
-    // A kept buffer is reused if it holds at least n doubles and not more
+    // A kept buffer is reused if it holds at least n values and not more
     // than four times that (a small render does not pin a big render's memory).
-    static HugeDoubles& fit(std::unique_ptr<HugeDoubles>& b, size_t n) {
-        const size_t need = std::max<size_t>(n, 1) * sizeof(double);
-        if (!b || b->bytes < need || b->bytes > 4 * need + HugeDoubles::kHuge) {
+    template <typename T>
+    static HugeArray<T>& fit(std::unique_ptr<HugeArray<T>>& b, size_t n) {
+        const size_t need = std::max<size_t>(n, 1) * sizeof(T);
+        if (!b || b->bytes < need || b->bytes > 4 * need + HugeArray<T>::kHuge) {
             b.reset();  // free first: two large buffers need not coexist
-            b = std::make_unique<HugeDoubles>(n);
+            b = std::make_unique<HugeArray<T>>(n);
         }
         return *b;
+    }
+    // Bytes held.
+    size_t bytes() const {
+        size_t n = 0;
+        if (mean) n += mean->bytes;
+        if (m2) n += m2->bytes;
+        if (splat_sum) n += splat_sum->bytes + splat_sum2->bytes;
+        return n;
     }
 };
 
@@ -90,12 +102,9 @@ TiledIntegrator::TiledIntegrator() : buffers_(std::make_unique<Buffers>()) {}
 TiledIntegrator::~TiledIntegrator() = default;
 
 size_t TiledIntegrator::release_buffers() {
-    size_t bytes = 0;
-    if (buffers_->sum) bytes += buffers_->sum->bytes;
-    if (buffers_->sum2) bytes += buffers_->sum2->bytes;
-    if (buffers_->splat_sum) bytes += buffers_->splat_sum->bytes + buffers_->splat_sum2->bytes;
-    buffers_->sum.reset();
-    buffers_->sum2.reset();
+    const size_t bytes = buffers_->bytes();
+    buffers_->mean.reset();
+    buffers_->m2.reset();
     buffers_->splat_sum.reset();
     buffers_->splat_sum2.reset();
     return bytes;
@@ -220,8 +229,13 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 squared.push_back({offset[s], var_offset[s], specs[s].channels});
         }
 
-    // Double sums keep the variance formula stable for thousands of samples.
-    // Squares are kept only where a variance is asked for. The buffers are
+    // Each pixel keeps the running mean of every channel and, where a
+    // variance is asked for, the sum of squared deviations from it, updated
+    // sample by sample (Welford, "Note on a method for calculating corrected
+    // sums of squares and products", 1962): stable for any number of samples
+    // in single precision, unlike a float sum of squares, at half the memory
+    // of double sums; each update rounds once, so a mean after n samples is
+    // within about sqrt(n) float roundings of the exact one. The buffers are
     // left uninitialised here and zeroed tile by tile by the workers in the
     // first pass: a serial memset of a large image would cost as much as a
     // few samples per pixel, and first touch on the worker places the pages.
@@ -233,7 +247,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // accumulated channel): refused up front when they exceed the machine's
     // memory, where the kernel would otherwise grant them and kill the
     // process part-way through the render.
-    const double need = double(npix) * (double(stride + var_stride) * sizeof(double) + double(stride) * sizeof(float)) +
+    const double need = double(npix) * (double(stride + var_stride) * sizeof(float) + double(stride) * sizeof(float)) +
                         double(splat_values) * (2 * sizeof(double) + sizeof(float));
     const double have = double(sysconf(_SC_PHYS_PAGES)) * double(sysconf(_SC_PAGE_SIZE));
     const auto too_big = [&] {
@@ -242,11 +256,11 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                           W, H, need * 1e-9, have * 1e-9));
     };
     if (have > 0.0 && need > have) throw too_big();
-    HugeDoubles* sum_p = nullptr;
-    HugeDoubles* sum2_p = nullptr;
+    HugeFloats* mean_p = nullptr;
+    HugeFloats* m2_p = nullptr;
     try {
-        sum_p = &Buffers::fit(buffers_->sum, npix * stride);
-        sum2_p = &Buffers::fit(buffers_->sum2, npix * var_stride);
+        mean_p = &Buffers::fit(buffers_->mean, npix * stride);
+        m2_p = &Buffers::fit(buffers_->m2, npix * var_stride);
         if (splatting) {
             Buffers::fit(buffers_->splat_sum, splat_values);
             Buffers::fit(buffers_->splat_sum2, splat_values);
@@ -254,8 +268,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     } catch (const std::bad_alloc&) {
         throw too_big();
     }
-    HugeDoubles& sum = *sum_p;
-    HugeDoubles& sum2 = *sum2_p;
+    HugeFloats& mean = *mean_p;
+    HugeFloats& m2 = *m2_p;
 
     struct Tile {
         int x0, y0, x1, y1;
@@ -291,8 +305,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     bool first_pass = true;
     // A pass that is abandoned part-way (an interrupt that cannot wait for its
     // end) restores the tiles it already added to from this copy of their
-    // sums, so that every pixel keeps the same number of samples.
-    std::unique_ptr<HugeDoubles> backup_sum, backup_sum2;
+    // accumulators, so that every pixel keeps the same number of samples.
+    std::unique_ptr<HugeFloats> backup_mean, backup_m2;
     std::vector<uint8_t> tile_done(tiles.size());
     std::vector<uint64_t> tile_samples(tiles.size());  // samples each tile took in the pass under way
     // Each tile's splats of the pass under way, added to the splat sums in
@@ -332,8 +346,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 }
                 if (keep)
                     tile_rows(t, [&](size_t s0, size_t s1, size_t q0, size_t q1) {
-                        std::copy(sum.data + s0, sum.data + s1, backup_sum->data + s0);
-                        std::copy(sum2.data + q0, sum2.data + q1, backup_sum2->data + q0);
+                        std::copy(mean.data + s0, mean.data + s1, backup_mean->data + s0);
+                        std::copy(m2.data + q0, m2.data + q1, backup_m2->data + q0);
                     });
                 // Jobs in pixel order, sample order within a pixel, handed to
                 // sample_batch() `batch` at a time (across pixels when passes
@@ -342,49 +356,70 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 std::vector<float> v_heap;
                 float* vp = v;
                 if (size_t(stride) * batch > 64) v_heap.resize(size_t(stride) * batch), vp = v_heap.data();
+                float zero_stack[64] = {};  // a dropped sample's values
+                std::vector<float> zero_heap;
+                const float* zeros = zero_stack;
+                if (stride > 64) zero_heap.assign(size_t(stride), 0.f), zeros = zero_heap.data();
                 SampleJob jobs[kMaxBatch];
                 int n = 0;
                 SplatList* splats = splatting ? &tile_splats[ti] : nullptr;
                 if (splats) splats->splats_.clear();
                 uint64_t local_rays = 0, local_nan = 0, local_samples = 0;
-                // Adds one sample's values `a` to pixel (x, y)'s sums, or
-                // drops and reports it if any value is not finite.
-                const auto add = [&](const float* a, int x, int y, double* ps, double* pq) __attribute__((always_inline)) {
+                // Adds one sample's values `a`, the pixel's sample `k` + 1 of
+                // this render, to pixel (x, y)'s running means `pm` and squared
+                // deviations `pq`, or reports it if any value is not finite
+                // and adds it as zero.
+                const auto add = [&](const float* a, int x, int y, long long k, float* pm,
+                                     float* pq) __attribute__((always_inline)) {
                     // Non-finite floats have all exponent bits set. Integer
                     // tests, unlike float compares with NaN, vectorise.
                     uint32_t bad = 0;
-                    for (int k = 0; k < stride; ++k)
-                        bad |= uint32_t((std::bit_cast<uint32_t>(a[k]) & 0x7f800000u) == 0x7f800000u);
+                    for (int c = 0; c < stride; ++c)
+                        bad |= uint32_t((std::bit_cast<uint32_t>(a[c]) & 0x7f800000u) == 0x7f800000u);
                     if (bad) [[unlikely]] {
                         // A NaN/Inf sample is reported with its pixel and dropped as zero.
                         ++local_nan;
-                        std::lock_guard<std::mutex> lock(nan_mutex);
-                        if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
-                        return;
+                        {
+                            std::lock_guard<std::mutex> lock(nan_mutex);
+                            if (stats.nonfinite_pixels.size() < 8) stats.nonfinite_pixels.emplace_back(x, y);
+                        }
+                        a = zeros;
                     }
-                    for (int k = 0; k < stride; ++k) ps[k] += a[k];
+                    const double inv = 1.0 / double(k + 1);
+                    // Squared deviations first: they need the mean before and after.
                     for (const Run& run : squared) {
                         const float* r = a + run.from;
-                        double* q = pq + run.to;
-                        for (int i = 0; i < run.n; ++i) q[i] += double(r[i]) * double(r[i]);
+                        const float* m = pm + run.from;
+                        float* q = pq + run.to;
+                        for (int i = 0; i < run.n; ++i) {
+                            const double d = double(r[i]) - double(m[i]);
+                            const double after = double(m[i]) + d * inv;
+                            q[i] = float(double(q[i]) + d * (double(r[i]) - after));
+                        }
                     }
+                    for (int c = 0; c < stride; ++c) pm[c] = float(double(pm[c]) + (double(a[c]) - double(pm[c])) * inv);
+                };
+                // The render's own samples of pixel (x, y) before its sample number i.
+                const auto taken = [&](int x, int y, long long i) {
+                    return i - count_at(x, y, st.first_sample);
                 };
                 const auto flush = [&] {
                     std::fill(vp, vp + size_t(n) * stride, 0.f);
                     sample_batch(scene, jobs, n, vp, stride, local_rays);
                     for (int j = 0; j < n; ++j) {
                         const size_t at = size_t(jobs[j].y) * W + jobs[j].x;
-                        add(vp + size_t(j) * stride, jobs[j].x, jobs[j].y, &sum[at * stride], &sum2[at * var_stride]);
+                        add(vp + size_t(j) * stride, jobs[j].x, jobs[j].y, taken(jobs[j].x, jobs[j].y, jobs[j].index),
+                            &mean[at * stride], &m2[at * var_stride]);
                     }
                     n = 0;
                 };
                 for (int y = t.y0; y < t.y1; ++y)
                     for (int x = t.x0; x < t.x1; ++x) {
-                        double* ps = &sum[(size_t(y) * W + x) * stride];
-                        double* pq = &sum2[(size_t(y) * W + x) * var_stride];
+                        float* pm = &mean[(size_t(y) * W + x) * stride];
+                        float* pq = &m2[(size_t(y) * W + x) * var_stride];
                         if (first_pass) {
-                            std::fill(ps, ps + stride, 0.0);
-                            std::fill(pq, pq + var_stride, 0.0);
+                            std::fill(pm, pm + stride, 0.f);
+                            std::fill(pq, pq + var_stride, 0.f);
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         const long long i0 = count_at(x, y, first), i1 = count_at(x, y, first + count);
@@ -395,7 +430,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                 std::fill(vp, vp + stride, 0.f);
                                 Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                                 sample(scene, x, y, sampler, vp, local_rays);
-                                add(vp, x, y, ps, pq);
+                                add(vp, x, y, taken(x, y, i), pm, pq);
                                 continue;
                             }
                             jobs[n].x = x, jobs[n].y = y, jobs[n].index = uint32_t(i);
@@ -447,8 +482,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
             samples -= tile_samples[ti];
             if (keep)
                 tile_rows(t, [&](size_t s0, size_t s1, size_t q0, size_t q1) {
-                    std::copy(backup_sum->data + s0, backup_sum->data + s1, sum.data + s0);
-                    std::copy(backup_sum2->data + q0, backup_sum2->data + q1, sum2.data + q0);
+                    std::copy(backup_mean->data + s0, backup_mean->data + s1, mean.data + s0);
+                    std::copy(backup_m2->data + q0, backup_m2->data + q1, m2.data + q0);
                 });
         }
         return false;
@@ -465,16 +500,16 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     // than passes of 16 spp (benchmarks/ab.sh, 5 rounds).
     const double pass_seconds = std::max(0.0, st.stop_latency), wait_seconds = 1.5 * pass_seconds;
     double seconds_per_spp = 0.0;  // of the last pass; 0 before the first
-    const double backup_bytes = double(npix) * double(stride + var_stride) * sizeof(double);
+    const double backup_bytes = double(npix) * double(stride + var_stride) * sizeof(float);
     const auto long_pass = [&](long long n) { return seconds_per_spp * double(n) >= wait_seconds; };
     const auto ensure_backup = [&] {
-        if (backup_sum) return true;
+        if (backup_mean) return true;
         if (have > 0.0 && need + backup_bytes > have) return false;
         try {
-            backup_sum = std::make_unique<HugeDoubles>(npix * stride);
-            backup_sum2 = std::make_unique<HugeDoubles>(npix * var_stride);
+            backup_mean = std::make_unique<HugeFloats>(npix * stride);
+            backup_m2 = std::make_unique<HugeFloats>(npix * var_stride);
         } catch (const std::bad_alloc&) {
-            backup_sum.reset();
+            backup_mean.reset();
             return false;
         }
         return true;
@@ -510,7 +545,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     }
     if (done == 0) throw Interrupted("the render was stopped before its first pass finished: there is no image to keep");
 
-    // Means and variances are read from the sums by finalize() itself: a slot
+    // Means and variances are read from the accumulators by finalize() itself: a slot
     // that only feeds a combined layer (G-PT's splats and one-sided
     // gradients) then costs no image of its own.
     Accumulated acc;
@@ -518,7 +553,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     acc.spp = done;
     acc.derived = !aborted();
     acc.width = W, acc.height = H;
-    acc.sum_ = sum.data, acc.sum2_ = sum2.data;
+    acc.mean_ = mean.data, acc.m2_ = m2.data;
     std::vector<uint32_t> counts;
     if (density) {
         counts.resize(npix);
@@ -549,6 +584,12 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
     out.metadata()["seed"] = std::to_string(st.seed);
     out.metadata()["first_sample"] = std::to_string(st.first_sample);
     out.metadata()["integrator_params"] = describe();
+    // The layers derived from the means (reconstructions) last, after large
+    // accumulators are freed: their solvers' memory then reuses the
+    // accumulators' instead of adding to it.
+    backup_mean.reset(), backup_m2.reset();
+    if (buffers_->bytes() > kKeptBufferBytes) release_buffers();
+    if (acc.derived) arena.execute([&] { update_merged(out); });
 
     stats.seconds = seconds();
     stats.samples = samples;

@@ -117,9 +117,10 @@ public:
                                const ProgressFn& progress = {}) = 0;
     /// The integrator's parameters as "key=value" lines (written to file headers).
     virtual std::string describe() const = 0;
-    /// Recomputes, in `merged`, the layers that are not means of samples (an L1
-    /// reconstruction is not the average of two reconstructions), after
-    /// merge_renders() pooled two renders of this integrator into it.
+    /// Computes, in `merged`, the layers that are not means of samples
+    /// (reconstructions: an L1 reconstruction is not the average of two) from
+    /// its means: called at the end of every render (after its spp layer is
+    /// set) and after merge_renders() pooled two renders of this integrator.
     virtual void update_merged(FrameBuffer& merged) const { (void)merged; }
     /// True if a frame of an animation should be rendered with its
     /// RenderSettings::frame_sampling filled in (see FrameSampling).

@@ -53,11 +53,11 @@ private:
     int width_ = 0, height_ = 0;
 };
 
-/// The per-pixel sums of a finished render, read as means and per-sample
-/// variances of its slots. It reads the render's double-precision sums in
-/// place: finalize() takes what it needs straight from them, so a slot that
-/// only feeds a combined layer never becomes an image of its own. Valid only
-/// during finalize().
+/// The per-pixel running means and squared deviations of a finished render,
+/// read as means and per-sample variances of its slots. It reads the
+/// render's accumulators in place: finalize() takes what it needs straight
+/// from them, so a slot that only feeds a combined layer never becomes an
+/// image of its own. Valid only during finalize().
 class Accumulated {
 public:
     std::vector<SlotSpec> specs;  ///< As declared by the integrator.
@@ -81,17 +81,13 @@ public:
     Image count_image() const;
     /// Mean of channel `c` of slot `s` at pixel (x, y), in the slot's units
     /// (the pixel's sum over its own sample count).
-    float mean(int s, int x, int y, int c) const {
-        return float(sum_[pixel(x, y) * stride_ + offset_[s] + c] / double(count(x, y)));
-    }
+    float mean(int s, int x, int y, int c) const { return mean_[pixel(x, y) * stride_ + offset_[s] + c]; }
     /// Per-sample variance of channel `c` of slot `s` at (x, y), in the slot's
     /// units squared; the slot must track a variance.
     float variance(int s, int x, int y, int c) const {
-        const size_t p = pixel(x, y);
-        const double a = sum_[p * stride_ + offset_[s] + c];
-        const double b = sum2_[p * var_stride_ + var_offset_[s] + c];
         const double n = double(count(x, y));
-        return n > 1.0 ? float(std::max(0.0, (b - a * (a / n)) / (n - 1.0))) : 0.f;
+        const double m2 = m2_[pixel(x, y) * var_stride_ + var_offset_[s] + c];
+        return n > 1.0 ? float(std::max(0.0, m2 / (n - 1.0))) : 0.f;
     }
     /// Mean of the first three channels of slot `s` at (x, y).
     Color mean_rgb(int s, int x, int y) const { return {mean(s, x, y, 0), mean(s, x, y, 1), mean(s, x, y, 2)}; }
@@ -126,9 +122,9 @@ public:
 private:
     friend class TiledIntegrator;
     size_t pixel(int x, int y) const { return size_t(y) * size_t(width) + size_t(x); }
-    const double* sum_ = nullptr;   // per pixel: `stride_` sums, slots in order
+    const float* mean_ = nullptr;  // per pixel: `stride_` running means, slots in order
     const uint32_t* counts_ = nullptr;  // per pixel: samples taken (adaptive sampling), or nullptr: spp each
-    const double* sum2_ = nullptr;  // per pixel: `var_stride_` squared sums of the slots with a variance
+    const float* m2_ = nullptr;  // per pixel: `var_stride_` sums of squared deviations from the mean (Welford)
     int stride_ = 0, var_stride_ = 0;
     std::vector<int> offset_, var_offset_;  // per slot: first channel in the sums / the squared sums (-1: none)
     const double* splat_sum_ = nullptr;   // per pixel and splat layer: 3 sums of splats
@@ -137,13 +133,15 @@ private:
 };
 
 /// Integrator skeleton: subclasses declare slots and implement sample().
-/// The accumulation buffers (per-pixel sums and squared sums, in double) are
-/// kept from one render to the next while their size fits: a frame sequence,
-/// an equal-time series or progressive passes then reuse warm pages instead of
-/// faulting in fresh ones, which on a virtual machine can cost as much as a
-/// few samples per pixel. release_buffers() returns the memory. Because of
-/// them, one object renders one image at a time: concurrent renders need one
-/// integrator each.
+/// The accumulation buffers (per-pixel running means and squared deviations,
+/// 8 bytes a channel with a variance and 4 without) are kept from one render
+/// to the next while their size fits and is below kKeptBufferBytes: a frame
+/// sequence, an equal-time series or progressive passes then reuse warm pages
+/// instead of faulting in fresh ones, which on a virtual machine can cost as
+/// much as a few samples per pixel. Larger ones are freed before the derived
+/// layers (reconstructions) are computed, so that the two never coexist.
+/// release_buffers() returns the memory. Because of them, one object renders
+/// one image at a time: concurrent renders need one integrator each.
 class TiledIntegrator : public Integrator {
 public:
     TiledIntegrator();
@@ -152,6 +150,9 @@ public:
                        const ProgressFn& progress) final;
     /// Frees the accumulation buffers kept from the last render (bytes freed).
     size_t release_buffers();
+    /// Largest accumulation buffers (bytes) a render keeps for the next one;
+    /// larger ones are freed before its derived layers are computed.
+    static constexpr size_t kKeptBufferBytes = size_t(512) << 20;
 
 protected:
     /// The slots each sample writes, in order.
