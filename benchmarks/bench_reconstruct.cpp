@@ -29,6 +29,7 @@
 
 #include <tbb/info.h>
 
+#include "gdr/io/reconstruct_files.h"
 #include "gdr/cli/commands.h"
 #include "gdr/cli/plugins.h"
 #include "gdr/io/exr.h"

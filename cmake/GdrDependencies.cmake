@@ -1,7 +1,15 @@
 # Every dependency comes from the system (Debian packages) through find_package
 # or pkg-config; nothing is vendored.
+# gdr::reconstruct needs GLM, TBB and FFTW only; GDR_FIND_RECONSTRUCT_ONLY
+# (set by gdrConfig.cmake for find_package(gdr COMPONENTS reconstruct))
+# skips the rest.
 find_package(glm REQUIRED)
 find_package(TBB REQUIRED)
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(FFTW3F REQUIRED IMPORTED_TARGET fftw3f)
+if(GDR_FIND_RECONSTRUCT_ONLY)
+  return()
+endif()
 find_package(embree 3 REQUIRED)
 # Debian 12's Imath package exports the target of its Python binding
 # (Imath::PyImath_Python3_11) without installing that library, and CMake then
@@ -31,6 +39,4 @@ find_package(nlohmann_json 3 REQUIRED)
 find_package(pugixml REQUIRED)
 # Mitsuba's zlib-compressed .serialized meshes.
 find_package(ZLIB REQUIRED)
-find_package(PkgConfig REQUIRED)
-pkg_check_modules(FFTW3F REQUIRED IMPORTED_TARGET fftw3f)
 pkg_check_modules(STB REQUIRED IMPORTED_TARGET stb)

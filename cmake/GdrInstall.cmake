@@ -1,7 +1,8 @@
-# Installs the library, headers and a CMake package so that outside projects
-# can find_package(gdr) and link gdr::gdr.
+# Installs the libraries, headers and a CMake package so that outside
+# projects can find_package(gdr) and link gdr::gdr, or find_package(gdr
+# COMPONENTS reconstruct) and link gdr::reconstruct alone.
 include(CMakePackageConfigHelpers)
-install(TARGETS gdr EXPORT gdrTargets
+install(TARGETS gdr gdr_reconstruct EXPORT gdrTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(DIRECTORY include/gdr DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

@@ -1,6 +1,10 @@
 #include <catch2/catch.hpp>
 
+#include <cmath>
+#include <cstdlib>
 #include <set>
+#include <string>
+#include <utility>
 
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
@@ -90,4 +94,22 @@ TEST_CASE("require_finite names the pixel", "[core]") {
     Image img(4, 3, 3, 1.f);
     img.at(2, 1, 1) = std::numeric_limits<float>::quiet_NaN();
     REQUIRE_THROWS_WITH(require_finite(img, "layer dx"), Catch::Contains("pixel (2, 1)") && Catch::Contains("dx"));
+}
+
+TEST_CASE("params: a real is written as the shortest text that reads back as it", "[params]") {
+    // The form stored in render headers and compared on resume: fixed
+    // notation for decimal exponents -4 to 15, scientific otherwise.
+    const std::pair<double, const char*> cases[] = {
+        {0.2, "0.2"},         {1e-4, "0.0001"}, {1e-5, "1e-05"}, {1e15, "1000000000000000"}, {1e16, "1e+16"},
+        {0.1 + 0.2, "0.30000000000000004"}, {-2.5, "-2.5"}, {3.0, "3"}, {5e-324, "5e-324"}, {1.5e300, "1.5e+300"},
+        {123456.789, "123456.789"}, {-0.001, "-0.001"}};
+    for (const auto& [v, text] : cases) CHECK(to_string(Params::Value(v)) == text);
+    // Every text reads back as the same double.
+    uint64_t state = 12345;
+    for (int i = 0; i < 20000; ++i) {
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        const double v = std::ldexp(double(state >> 11) / double(1ull << 53), int(state % 200) - 100);
+        const std::string t = to_string(Params::Value(v));
+        REQUIRE(std::strtod(t.c_str(), nullptr) == v);
+    }
 }

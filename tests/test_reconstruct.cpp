@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cfloat>
 
+#include "gdr/io/reconstruct_files.h"
 #include "gdr/core/cancel.h"
 #include "gdr/io/exr.h"
 #include "gdr/metrics.h"

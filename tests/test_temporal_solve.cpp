@@ -10,6 +10,7 @@
 #include <random>
 #include <unistd.h>
 
+#include "gdr/io/reconstruct_files.h"
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/poisson.h"
 #include "gdr/reconstruct/temporal.h"

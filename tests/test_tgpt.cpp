@@ -10,6 +10,7 @@
 
 #include "block_stats.h"
 #include "cli_test_util.h"
+#include "gdr/io/reconstruct_files.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
 #include "gdr/io/scene_file.h"

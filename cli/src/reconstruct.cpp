@@ -2,6 +2,7 @@
 
 #include <fmt/core.h>
 
+#include "gdr/io/reconstruct_files.h"
 #include "gdr/cli/commands.h"
 #include "gdr/cli/plugins.h"
 #include "gdr/core/error.h"

@@ -1,20 +1,54 @@
 #include "gdr/core/params.h"
 
-#include <fmt/core.h>
-
 #include <cerrno>
+#include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <algorithm>
 #include <sstream>
 
 namespace gdr {
 
+namespace {
+// The shortest text that reads back as the same double, in fixed notation
+// for decimal exponents -4 to 15 and scientific otherwise: 0.2, 0.0001,
+// 1e-05, 1e+16 (the form parameter files have always been written in).
+std::string shortest_text(double d) {
+    if (std::isnan(d)) return std::signbit(d) ? "-nan" : "nan";
+    if (std::isinf(d)) return d < 0 ? "-inf" : "inf";
+    char buf[64];
+    const auto r = std::to_chars(buf, buf + sizeof buf, d, std::chars_format::scientific);
+    const std::string s(buf, r.ptr);
+    const size_t e = s.find('e');
+    const int exp = std::atoi(s.c_str() + e + 1);
+    const bool neg = s[0] == '-';
+    std::string digits;
+    for (size_t i = neg ? 1 : 0; i < e; ++i)
+        if (s[i] != '.') digits += s[i];
+    std::string out;
+    if (exp < -4 || exp >= 16) {
+        out = digits.substr(0, 1);
+        if (digits.size() > 1) out += "." + digits.substr(1);
+        char eb[16];
+        std::snprintf(eb, sizeof eb, "e%c%02d", exp < 0 ? '-' : '+', std::abs(exp));
+        out += eb;
+    } else if (exp < 0) {
+        out = "0." + std::string(size_t(-exp - 1), '0') + digits;
+    } else if (digits.size() <= size_t(exp) + 1) {
+        out = digits + std::string(size_t(exp) + 1 - digits.size(), '0');
+    } else {
+        out = digits.substr(0, size_t(exp) + 1) + "." + digits.substr(size_t(exp) + 1);
+    }
+    return neg ? "-" + out : out;
+}
+}  // namespace
+
 std::string to_string(const Params::Value& v) {
     if (auto b = std::get_if<bool>(&v)) return *b ? "true" : "false";
     if (auto i = std::get_if<long long>(&v)) return std::to_string(*i);
     // The shortest text that reads back as the same double: 0.2, not 0.20000000000000001.
-    if (auto d = std::get_if<double>(&v)) return fmt::format("{}", *d);
+    if (auto d = std::get_if<double>(&v)) return shortest_text(*d);
     return std::get<std::string>(v);
 }
 

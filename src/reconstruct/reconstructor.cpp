@@ -12,7 +12,6 @@
 #include <cstdint>
 #include <filesystem>
 
-#include "gdr/io/exr.h"
 #include "gdr/reconstruct/poisson.h"
 
 namespace gdr {
@@ -138,27 +137,6 @@ Registry<Reconstructor>& reconstructor_registry() {
 
 Image reconstruct(const std::string& method, const Params& params, const GradientBuffers& in) {
     return reconstructor_registry().create(method, params)->reconstruct(in);
-}
-
-GradientFrame load_reference_layout(const std::string& prefix) {
-    namespace fs = std::filesystem;
-    GradientFrame f;
-    const std::string primal = prefix + "-primal.exr", throughput = prefix + "-throughput.exr";
-    if (fs::exists(primal)) f.primal = read_exr_rgb(primal);
-    else if (fs::exists(throughput)) f.primal = read_exr_rgb(throughput);
-    else throw InputError("reference layout: neither " + primal + " nor " + throughput + " exists");
-    for (auto [img, suffix] : {std::pair{&f.dx, "-dx.exr"}, std::pair{&f.dy, "-dy.exr"}}) {
-        const std::string path = prefix + suffix;
-        if (!fs::exists(path)) throw InputError("reference layout: missing " + path);
-        *img = read_exr_rgb(path);
-    }
-    if (fs::exists(prefix + "-direct.exr")) f.direct = read_exr_rgb(prefix + "-direct.exr");
-    const std::pair<const Image*, const char*> layers[] = {{&f.dx, "-dx.exr"}, {&f.dy, "-dy.exr"}, {&f.direct, "-direct.exr"}};
-    for (const auto& [img, suffix] : layers)
-        if (!img->empty() && !img->same_shape(f.primal))
-            throw InputError("reference layout: " + prefix + suffix + " is " + shape_text(*img) +
-                             " but the primal image is " + shape_text(f.primal));
-    return f;
 }
 
 GradientBuffers gradient_buffers(const FrameBuffer& fb) {

@@ -109,12 +109,6 @@ void register_poisson_reconstructors(Registry<Reconstructor>& r);
 /// (unknown keys are errors) and returns its reconstruction including direct.
 Image reconstruct(const std::string& method, const Params& params, const GradientBuffers& in);
 
-/// Loads the files the public Mitsuba-based G-PT implementation writes for
-/// one render, e.g. prefix ".../cbox": cbox-primal.exr or cbox-throughput.exr,
-/// cbox-dx.exr, cbox-dy.exr and optionally cbox-direct.exr. Throws InputError
-/// naming the missing file.
-GradientFrame load_reference_layout(const std::string& prefix);
-
 /// Views of the layers "primal", "dx", "dy" and the optional "direct",
 /// "primal_variance", "dx_variance", "dy_variance" and "spp" of a gdr frame
 /// buffer, with `layers` = &fb for the rest (valid while `fb` lives);
