@@ -502,7 +502,7 @@ class _XmlWriter:
         attrs = {"type": ptype, "id": d.get("id", key)}
         if not isinstance(attrs["id"], str):
             raise ParameterError(f"load_dict: {key}.id: must be a str, got {attrs['id']!r}")  # noqa: F821
-        if name and tag in ("texture", "bsdf", "emitter", "medium", "phase", "volume"):
+        if name and tag in ("texture", "volume"):  # a property of its parent; other nested plugins go unnamed
             attrs["name"] = name
         self.element(depth, tag, attrs, key, close=False)
         for k, v in d.items():
@@ -588,25 +588,28 @@ def _mitsuba_dict_xml(scene):
     return "\n".join(w.lines) + "\n", w.keys
 
 
-def _load_mitsuba_dict(scene, base_dir):
+def _load_mitsuba_dict(scene, base_dir, lenient):
     import os
     import re
 
     text, keys = _mitsuba_dict_xml(scene)
     name = os.path.join(os.path.abspath(base_dir if base_dir is not None else os.getcwd()), "<dict>.xml")
-    try:
-        result = _load_mitsuba_text(text, name)  # noqa: F821
-    except Error as e:  # noqa: F821
+
+    def by_key(message):
         # The importer names the generated text's lines: name the dict's keys instead.
         prefix = re.escape(name) + r":(\d+): "
-        msg = re.sub(prefix, lambda m: f"{keys.get(int(m.group(1)), 'line ' + m.group(1))}: ", str(e))
-        raise type(e)("load_dict: " + msg) from None
-    _remember_source(result, ("mitsuba-dict", text, name))
-    return result
+        return re.sub(prefix, lambda m: f"{keys.get(int(m.group(1)), 'line ' + m.group(1))}: ", message)
+
+    try:
+        result = _load_mitsuba_text(text, name, bool(lenient))  # noqa: F821
+    except Error as e:  # noqa: F821
+        raise type(e)("load_dict: " + by_key(str(e))) from None
+    _remember_source(result, ("mitsuba-dict", text, name, bool(lenient)))
+    return result, [by_key(w) for w in result.warnings]
 
 
-def load_dict(scene, base_dir=None):
-    """load_dict(scene, base_dir=None) -> gdr.Scene
+def load_dict(scene, base_dir=None, lenient=False):
+    """load_dict(scene, base_dir=None, lenient=False) -> gdr.Scene
 
     A scene from a dict with the structure of gdr's JSON scene files ('camera', 'meshes',
     'materials', 'render', 'environment', 'animation'; README, "Scene files"): load_dict(d)
@@ -625,16 +628,19 @@ def load_dict(scene, base_dir=None):
     is loaded by gdr's Mitsuba importer, so it supports the plugins load_scene supports in XML;
     errors name the key path ('floor.bsdf.type: unknown plugin ...'). Transforms are gdr.Transform
     (gdr.look_at(...), gdr.Transform().translate(...).scale(...)) or 4x4 matrices (nested lists,
-    numpy arrays); a 3-list is a point; base_dir resolves 'filename's."""
+    numpy arrays); a 3-list is a point; base_dir resolves 'filename's. lenient (Mitsuba-style dicts
+    only) is load_scene's: unsupported plugins and properties become warnings instead of errors."""
     if not isinstance(scene, dict):
         raise TypeError(f"load_dict: expected a dict, got {type(scene).__name__}")
     if "type" in scene:
         if scene["type"] != "scene":
             raise ParameterError(f"load_dict: type: a Mitsuba-style dict describes a 'scene', got {scene['type']!r}")  # noqa: F821
-        result = _load_mitsuba_dict(scene, base_dir)
-        for w in result.warnings:
+        result, warnings = _load_mitsuba_dict(scene, base_dir, lenient)
+        for w in warnings:
             _warnings.warn(w, SceneWarning, stacklevel=2)
         return result
+    if lenient:
+        raise ParameterError("load_dict: lenient applies to Mitsuba-style dicts ({'type': 'scene', ...}) only")  # noqa: F821
     _check_mesh_arrays(scene)
     text = _json.dumps(_json_ready(scene, ""))
     import os
@@ -887,7 +893,7 @@ def _copy_scene(scene, memo=None):
     elif src[0] == "dict":
         new = _load_scene_text(_json.dumps(src[1]), src[2])  # noqa: F821
     elif src[0] == "mitsuba-dict":
-        new = _load_mitsuba_text(src[1], src[2])  # noqa: F821
+        new = _load_mitsuba_text(src[1], src[2], src[3])  # noqa: F821
     else:
         new = _load_scene_core(src[1], src[2], src[3])
     _remember_source(new, src)
