@@ -202,6 +202,17 @@ class MitsubaDicts(unittest.TestCase):
                 np.testing.assert_array_equal(a[name], b[name], err_msg=f"{integrator} {name}")
         self.assertGreater(a["color"].mean(), 0.01)
 
+    def test_copies_and_camera_edits(self):
+        scene = gdr.load_dict(mitsuba_dict(), base_dir=self.dir)
+        twin = copy.copy(scene)
+        np.testing.assert_array_equal(gdr.render(twin, spp=1, seed=2)["color"], gdr.render(scene, spp=1, seed=2)["color"])
+        params = gdr.traverse(scene)
+        self.assertEqual(sorted(params), ["camera.fov", "camera.fov_axis", "camera.height", "camera.width"])
+        params["camera.fov"] = 30
+        params.update()
+        self.assertNotEqual(scene.content_hash, twin.content_hash)
+        self.assertEqual(copy.copy(scene).fov, 30)
+
     def test_matrices_and_numpy_arrays_as_transforms(self):
         # A 4x4 matrix (nested lists or numpy) gives the same placement as its steps would, up to
         # the rounding of a matrix product done in float64 instead of float32 step by step.
