@@ -305,6 +305,9 @@ void Scene::set_object_geometry(uint32_t object_id, const std::vector<Vec3>& pos
     rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
     rtcCommitGeometry(geom);
     rtcCommitScene(static_cast<RTCScene>(rtc_scene_));
+    // The device's error callback writes to a string of the thread that built the scene; ask the device itself.
+    if (const RTCError e = rtcGetDeviceError(static_cast<RTCDevice>(rtc_device_)); e != RTC_ERROR_NONE)
+        throw RuntimeFailure(fmt::format("{}: Embree error {} while rebuilding the BVH", what, int(e)));
     compute_bounds();
     build_lights();  // emitter corners, areas and the power distribution; the environment's share depends on the bounds
 }
