@@ -857,7 +857,7 @@ class SceneParameters:
         if camera:
             cam = {k.split(".", 1)[1]: changed[k] for k in camera}
             try:
-                _set_camera(scene, cam, "")  # noqa: F821 (the hash is set by _record_edits)
+                _set_camera(scene, cam)  # noqa: F821 (the hash is set by _record_edits)
             except Error as e:  # noqa: F821 (the camera's own message names no key)
                 raise type(e)(f"gdr.traverse: {', '.join(sorted(camera))}: {e}") from None
             self._desc.setdefault("camera", {}).update(cam)

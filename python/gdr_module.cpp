@@ -874,6 +874,7 @@ void bind_package(py::module_& m) {
     m.def(
         "_set_edits",
         [](PyScene& s, const std::string& edits, const std::string& content_hash) {
+            s.require_idle("record edits");
             s.edits = edits;
             s.sf.content_hash = content_hash;
         },
@@ -881,7 +882,7 @@ void bind_package(py::module_& m) {
     m.def("_scene_text_hash", &gdr::scene_text_hash, py::arg("text"), py::arg("name"), py::arg("inputs"));
     m.def(
         "_set_camera",
-        [](PyScene& s, const py::dict& changes, const std::string& hash_salt) {
+        [](PyScene& s, const py::dict& changes) {
             s.require_idle("change the camera");
             if (s.sf.animation) throw gdr::ParameterError(s.sf.path + ": an animated scene's camera follows its keys");
             gdr::CameraDesc d = s.sf.scene->camera().desc();
@@ -902,23 +903,9 @@ void bind_package(py::module_& m) {
             if (changes.contains("width")) d.width = changes["width"].cast<int>();
             if (changes.contains("height")) d.height = changes["height"].cast<int>();
             s.sf.scene->set_camera(gdr::Camera(d));  // rejects a degenerate camera
-            // Renders of the moved camera are renders of another image: the hash (of the
-            // loaded scene's hash and the camera, given by the caller) says so.
-            uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64
-            for (unsigned char b : hash_salt) h = (h ^ b) * 0x100000001b3ull;
-            char hex[17];
-            std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
-            s.sf.content_hash = hex;
+            // The content hash and the render headers record the change through _set_edits.
         },
-        py::arg("scene"), py::arg("changes"), py::arg("hash_salt"));
-    m.def(
-        "_replace_scene",
-        [](PyScene& target, PyScene& source) {
-            target.require_idle("update the scene");
-            target.sf = std::move(source.sf);
-            target.edits = std::move(source.edits);
-        },
-        py::arg("target"), py::arg("source"));
+        py::arg("scene"), py::arg("changes"));
     m.def(
         "_load_plugin",
         [](const std::optional<fs::path>& file) {
