@@ -712,7 +712,7 @@ class SceneParameters:
     'camera.width', 'materials.NAME.kd', 'materials.NAME.alpha' (roughness), 'materials.NAME.ke'
     (emitted radiance), 'meshes[I].transform', 'environment.radiance', ... Assign new values, then
     call update(): each change is made in the loaded scene itself, rebuilding only what depends on
-    it (docs/python.md, "Editing a scene in place"); no file is read again but an environment map's."""
+    it (docs/python.md, "Editing a scene in place"); no scene file or mesh is read again."""
 
     def __init__(self, scene):
         self._scene = scene

@@ -127,7 +127,7 @@ std::string scene_text_hash(const std::string& text, const std::string& name, co
 /// "kd": [0.5, 0.5, 0.5], "alpha": 0.1}) and rebuilds, in place, the BSDF and
 /// emitted radiance of every material of that name as loading would have
 /// (see Scene::set_material: light distribution refreshed where the emission
-/// changes). Needs an editable still scene (ParameterError otherwise);
+/// changes; a map_kd image is read again). Needs an editable still scene (ParameterError otherwise);
 /// InputError naming materials.NAME.KEY for a bad value.
 void edit_material(SceneFile& sf, const std::string& name, const std::string& fields_json);
 
