@@ -731,9 +731,15 @@ class SceneParameters:
         self._values.update({"camera.fov": scene.fov, "camera.fov_axis": scene.fov_axis,
                              "camera.width": scene.width, "camera.height": scene.height})
         for name, fields in (self._desc.get("materials") or {}).items():
+            # The values the material has where its entry does not give them (its MTL's, or the
+            # defaults); an animated scene, not edited in place, lists its entries' own.
+            try:
+                known = _material_values(scene, name, _json.dumps(fields))  # noqa: F821
+            except Error:  # noqa: F821
+                known = {}
             for k in _MATERIAL_KEYS:
-                if k in fields:
-                    self._values[f"materials.{name}.{k}"] = fields[k]
+                if k in fields or k in known:
+                    self._values[f"materials.{name}.{k}"] = fields[k] if k in fields else known[k]
         for i, m in enumerate(self._desc.get("meshes") or []):
             if isinstance(m, dict) and "transform" in m:
                 self._values[f"meshes[{i}].transform"] = m["transform"]

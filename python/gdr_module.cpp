@@ -858,6 +858,18 @@ void bind_package(py::module_& m) {
         },
         py::arg("scene"), py::arg("name"), py::arg("fields"));
     m.def(
+        "_material_values",
+        [](PyScene& s, const std::string& name, const std::string& fields) {
+            const gdr::MaterialDesc d = gdr::material_description(s.sf, name, fields);
+            const auto rgb = [](const gdr::Color& c) { return std::vector<double>{c.r, c.g, c.b}; };
+            py::dict v;
+            v["kd"] = rgb(d.kd), v["ks"] = rgb(d.ks), v["ke"] = rgb(d.ke);
+            v["ns"] = double(d.ns), v["eta"] = double(d.ni);
+            if (d.pr >= 0.f) v["alpha"] = double(d.pr);
+            return v;
+        },
+        py::arg("scene"), py::arg("name"), py::arg("fields"));
+    m.def(
         "_edit_mesh_transform",
         [](PyScene& s, size_t index, const std::string& transform) {
             s.require_idle("move a mesh");

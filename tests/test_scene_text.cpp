@@ -118,6 +118,10 @@ TEST_CASE("edits in place render as a fresh load of the edited scene", "[scene]"
     edit_mesh_transform(sf, 1, R"({"translate": [0.1, -0.2, 0.05], "scale": 1.4})");
     edit_environment(sf, R"({"type": "constant", "radiance": [0.1, 0.2, 0.3]})");
     CHECK(sf.scene.get() == before);  // the same Scene, changed
+    const MaterialDesc floor = material_description(sf, "floor", R"({"type": "diffuse", "ks": [0.25, 0, 0]})");
+    CHECK(floor.ks.r == 0.25f);
+    CHECK(floor.kd.g == 0.f);  // an array mesh's material starts from the defaults
+    CHECK(floor.pr < 0.f);
     std::string text = replaced(quads(), R"({"type": "diffuse", "kd": [0.6, 0.5, 0.4]})",
                                 R"({"type": "plastic", "kd": [0.2, 0.6, 0.3], "ks": [0.3, 0.3, 0.3], "alpha": 0.15})");
     text = replaced(text, R"("ke": [8, 8, 8])", R"("ke": [3, 5, 9])");

@@ -1165,7 +1165,9 @@ static SceneEditState& edit_state(SceneFile& sf, const std::string& what) {
     return *sf.edit;
 }
 
-void edit_material(SceneFile& sf, const std::string& name, const std::string& fields_json) {
+// The scene-file values `fields_json` of material `name` as an Override, and the materials of that name.
+static std::pair<Override, const std::vector<SceneEditState::MaterialRecord>*> material_override(
+    SceneFile& sf, const std::string& name, const std::string& fields_json) {
     const std::string where = "materials." + name;
     SceneEditState& st = edit_state(sf, where);
     const auto it = st.materials.find(name);
@@ -1181,9 +1183,20 @@ void edit_material(SceneFile& sf, const std::string& name, const std::string& fi
         if (!o.fields["type"].is_string()) fail(sf.path, where + ".type must be a string");
         o.type = o.fields["type"].get<std::string>();
     }
+    return {std::move(o), &it->second};
+}
+
+MaterialDesc material_description(SceneFile& sf, const std::string& name, const std::string& fields_json) {
+    const auto [o, records] = material_override(sf, name, fields_json);
+    return apply_override(sf.path, records->front().base, o);
+}
+
+void edit_material(SceneFile& sf, const std::string& name, const std::string& fields_json) {
+    const std::string where = "materials." + name;
+    const auto [o, records] = material_override(sf, name, fields_json);
     // Every material of the name is rebuilt before any is installed: a refused value changes nothing.
     std::vector<std::pair<uint32_t, Material>> built;
-    for (const SceneEditState::MaterialRecord& r : it->second) {
+    for (const SceneEditState::MaterialRecord& r : *records) {
         const MaterialDesc d = apply_override(sf.path, r.base, o);
         Material m;
         m.emission = d.ke;

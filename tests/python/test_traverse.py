@@ -141,13 +141,17 @@ class InPlace(unittest.TestCase):
     def test_emitter_radiance(self):
         self.assert_same(*self.edit(spheres_scene, {"materials.light.ke": [5, 9, 20]}))
         # A second emitter appears: the light distribution is rebuilt over both.
-        def dark_floor():
-            d = arrays_scene()
-            d["materials"]["floor"]["ke"] = [0, 0, 0]
-            return d
-        scene, fresh = self.edit(dark_floor, {"materials.floor.ke": [0.5, 0.2, 0.1]})
+        scene, fresh = self.edit(arrays_scene, {"materials.floor.ke": [0.5, 0.2, 0.1]})
         self.assertEqual(scene.emitters, 4)
         self.assert_same(scene, fresh)
+
+    def test_values_the_scene_file_does_not_give(self):
+        # Listed with the values the material has (its MTL's, or the defaults), and editable.
+        params = gdr.traverse(gdr.load_dict(spheres_scene()))
+        np.testing.assert_allclose(params["materials.light.kd"], [0.78, 0.78, 0.78], rtol=1e-6)
+        self.assertEqual(params["materials.leftSphere.alpha"], 0.2)
+        self.assertEqual(gdr.traverse(gdr.load_dict(arrays_scene()))["materials.floor.ke"], [0.0, 0.0, 0.0])
+        self.assert_same(*self.edit(spheres_scene, {"materials.light.kd": [0.1, 0.5, 0.2]}))
 
     def test_transforms(self):
         # Smooth normals of an OBJ turned with it.

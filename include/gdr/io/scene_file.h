@@ -131,6 +131,13 @@ std::string scene_text_hash(const std::string& text, const std::string& name, co
 /// InputError naming materials.NAME.KEY for a bad value.
 void edit_material(SceneFile& sf, const std::string& name, const std::string& fields_json);
 
+/// The description material `name` would be built from with the scene-file
+/// values `fields_json` (as edit_material takes them): its MTL values with
+/// those over them (colours unitless or W/(m^2 sr), pr the GGX alpha or
+/// negative, ns the Phong exponent, ni the index of refraction); e.g. to list
+/// the values a material has without the scene file giving them. Errors as edit_material's.
+MaterialDesc material_description(SceneFile& sf, const std::string& name, const std::string& fields_json);
+
 /// Sets mesh entry `index`'s transform (the scene file's meshes[i].transform,
 /// JSON text; "null" for none) and moves its triangles in place from their
 /// untransformed vertices, as loading would place them (Scene::set_object_geometry
