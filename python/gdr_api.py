@@ -332,8 +332,284 @@ def _check_mesh_arrays(scene):
                     raise ParameterError(f"load_dict: '{name}' has shape {a.shape}; expected (n, 3)")  # noqa: F821
 
 
-def load_dict(scene, base_dir=None):
-    """load_dict(scene, base_dir=None) -> gdr.Scene
+class Transform:
+    """A 4x4 affine transform built as Mitsuba 3's mi.ScalarTransform4f is: each method returns
+    this transform followed by (applied after) nothing but composed on the right, so that
+    gdr.Transform().translate(t).scale(s) scales a point first, then translates it. Used as a
+    load_dict 'to_world'; numpy.asarray(T) (or T.matrix) is its matrix (row-major, points as
+    columns). It keeps its steps, so that a dict scene places objects with the operations (and
+    rounding) of the equivalent Mitsuba XML <transform>."""
+
+    def __init__(self, matrix=None):
+        import numpy as np
+
+        self._steps = []  # (tag, attributes), in XML order: the first applies to the point first
+        self.matrix = np.eye(4)
+        if matrix is not None:
+            m = np.asarray(matrix, dtype=float)
+            if m.shape != (4, 4):
+                raise ParameterError(f"gdr.Transform: a matrix must be 4x4, got shape {m.shape}")  # noqa: F821
+            self._steps.append(("matrix", {"value": " ".join(repr(float(x)) for x in m.reshape(-1))}))
+            self.matrix = m
+
+    def _then(self, tag, attrs, m):
+        import numpy as np
+
+        out = Transform()
+        out._steps = [(tag, attrs)] + self._steps  # composed on the right: applied first
+        out.matrix = self.matrix @ np.asarray(m, dtype=float)
+        return out
+
+    def translate(self, v):
+        """This transform after a translation by v (3 numbers, scene units)."""
+        import numpy as np
+
+        x, y, z = (float(c) for c in _three(v, "translate"))
+        m = np.eye(4)
+        m[:3, 3] = (x, y, z)
+        return self._then("translate", {"x": repr(x), "y": repr(y), "z": repr(z)}, m)
+
+    def scale(self, v):
+        """This transform after a scale by v (one number, or 3 per axis)."""
+        import numpy as np
+
+        x, y, z = (float(v),) * 3 if isinstance(v, (int, float)) else (float(c) for c in _three(v, "scale"))
+        return self._then("scale", {"x": repr(x), "y": repr(y), "z": repr(z)}, np.diag([x, y, z, 1.0]))
+
+    def rotate(self, axis, angle):
+        """This transform after a rotation by `angle` degrees about `axis` (3 numbers, right-handed)."""
+        import math
+
+        import numpy as np
+
+        a = np.array([float(c) for c in _three(axis, "rotate")])
+        n = np.linalg.norm(a)
+        if not n > 0:
+            raise ParameterError("gdr.Transform.rotate: the axis is zero")  # noqa: F821
+        x, y, z = a / n
+        t = math.radians(float(angle))
+        c, s = math.cos(t), math.sin(t)
+        r = np.eye(4)
+        r[:3, :3] = [[c + x * x * (1 - c), x * y * (1 - c) - z * s, x * z * (1 - c) + y * s],
+                     [y * x * (1 - c) + z * s, c + y * y * (1 - c), y * z * (1 - c) - x * s],
+                     [z * x * (1 - c) - y * s, z * y * (1 - c) + x * s, c + z * z * (1 - c)]]
+        return self._then("rotate", {"x": repr(float(a[0])), "y": repr(float(a[1])), "z": repr(float(a[2])),
+                                     "angle": repr(float(angle))}, r)
+
+    def look_at(self, origin, target, up):
+        """This transform after a camera-to-world look-at: the camera at `origin` looks at `target`
+        (scene units), `up` giving the image's up direction (Mitsuba's convention: +z forward)."""
+        import numpy as np
+
+        o, t, u = (np.array([float(c) for c in _three(v, "look_at")]) for v in (origin, target, up))
+        d = t - o
+        if not np.linalg.norm(d) > 0:
+            raise ParameterError("gdr.look_at: origin and target coincide")  # noqa: F821
+        d /= np.linalg.norm(d)
+        left = np.cross(u / (np.linalg.norm(u) or 1.0), d)
+        if not np.linalg.norm(left) > 0:
+            raise ParameterError("gdr.look_at: up is parallel to the viewing direction")  # noqa: F821
+        left /= np.linalg.norm(left)
+        new_up = np.cross(d, left)
+        m = np.eye(4)
+        m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = left, new_up, d, o
+        f = " ".join
+        return self._then("lookat", {"origin": f(repr(float(c)) for c in o), "target": f(repr(float(c)) for c in t),
+                                     "up": f(repr(float(c)) for c in u)}, m)
+
+    def __array__(self, dtype=None, copy=None):
+        return self.matrix if dtype is None else self.matrix.astype(dtype)
+
+    def __repr__(self):
+        return f"gdr.Transform({self.matrix.tolist()!r})"
+
+
+def _three(v, what):
+    v = list(v)
+    if len(v) != 3:
+        raise ParameterError(f"gdr.Transform.{what}: expected 3 numbers, got {len(v)}")  # noqa: F821
+    return v
+
+
+def look_at(origin, target, up):
+    """look_at(origin, target, up) -> gdr.Transform
+
+    A camera-to-world transform (Mitsuba 3's ScalarTransform4f().look_at): a sensor's 'to_world'
+    in a Mitsuba-style dict. numpy.asarray of it is its 4x4 matrix."""
+    return Transform().look_at(origin, target, up)
+
+
+# The XML element of each Mitsuba plugin type that a Mitsuba-style dict may name (gdr's Mitsuba
+# importer decides which it supports, and says so naming the key).
+_PLUGIN_TAGS = {}
+for _tag, _names in (
+        ("sensor", "perspective thinlens orthographic telecentric radiancemeter irradiancemeter batch"),
+        ("film", "hdrfilm ldrfilm specfilm"),
+        ("rfilter", "box tent gaussian mitchell catmullrom lanczos"),
+        ("sampler", "independent stratified multijitter orthogonal ldsampler halton sobol"),
+        ("integrator", "path volpath volpath_simple bdpt gpt direct aov ptracer prb prb_basic direct_projective "
+                       "prb_projective moment stokes depth"),
+        ("shape", "obj ply serialized rectangle cube sphere disk cylinder shapegroup instance bsplinecurve "
+                  "linearcurve sdfgrid"),
+        ("bsdf", "diffuse roughdiffuse conductor roughconductor dielectric thindielectric roughdielectric plastic "
+                 "roughplastic phong ward twosided mask bumpmap normalmap blendbsdf coating roughcoating null "
+                 "principled principledthin pplastic hair measured polarizer retarder circular"),
+        ("emitter", "area point spot directional constant envmap sunsky sky sun projector directionalarea"),
+        ("texture", "bitmap checkerboard scale volume mesh_attribute"),
+        ("medium", "homogeneous heterogeneous"),
+        ("phase", "isotropic hg rayleigh sggx"),
+        ("volume", "constvolume gridvolume")):
+    for _n in _names.split():
+        _PLUGIN_TAGS.setdefault(_n, _tag)
+del _tag, _names, _n
+
+
+class _XmlWriter:
+    """A Mitsuba-style dict as Mitsuba 3 XML text, one element a line, with each line's key path
+    kept so that the importer's messages (which name the line) can name the key instead."""
+
+    def __init__(self):
+        self.lines = ['<?xml version="1.0"?>', '<scene version="3.0.0">']
+        self.keys = {}  # line number (1-based) -> key path
+
+    @staticmethod
+    def _attrs(attrs):
+        from xml.sax.saxutils import quoteattr
+
+        return "".join(f" {k}={quoteattr(str(v))}" for k, v in attrs.items())
+
+    def element(self, depth, tag, attrs, key, close=True):
+        self.lines.append("  " * depth + f"<{tag}{self._attrs(attrs)}{'/' if close else ''}>")
+        self.keys[len(self.lines)] = key
+
+    def end(self, depth, tag):
+        self.lines.append("  " * depth + f"</{tag}>")
+
+    def plugin(self, depth, key, name, d):
+        ptype = d.get("type")
+        if not isinstance(ptype, str):
+            raise ParameterError(f"load_dict: {key}.type: a plugin needs a 'type' (a str), got {ptype!r}")  # noqa: F821
+        if ptype == "ref":
+            extra = set(d) - {"type", "id"}
+            if extra or not isinstance(d.get("id"), str):
+                raise ParameterError(f"load_dict: {key}: a reference is {{'type': 'ref', 'id': NAME}}"  # noqa: F821
+                                     + (f"; unknown key '{sorted(extra)[0]}'" if extra else ""))
+            self.element(depth, "ref", {"id": d["id"], **({"name": name} if name else {})}, key)
+            return
+        tag = _PLUGIN_TAGS.get(ptype)
+        if tag is None:
+            raise ParameterError(f"load_dict: {key}.type: unknown plugin '{ptype}'")  # noqa: F821
+        attrs = {"type": ptype, "id": d.get("id", key)}
+        if not isinstance(attrs["id"], str):
+            raise ParameterError(f"load_dict: {key}.id: must be a str, got {attrs['id']!r}")  # noqa: F821
+        if name and tag in ("texture", "volume"):  # a property of its parent; other nested plugins go unnamed
+            attrs["name"] = name
+        self.element(depth, tag, attrs, key, close=False)
+        for k, v in d.items():
+            if k in ("type", "id"):
+                continue
+            if not isinstance(k, str):
+                raise TypeError(f"load_dict: {key} has a key {k!r} of type {type(k).__name__}; keys are str")
+            self.value(depth + 1, f"{key}.{k}", k, v)
+        self.end(depth, tag)
+
+    def value(self, depth, key, name, v):
+        import numpy as np
+
+        if isinstance(v, Transform):
+            self.element(depth, "transform", {"name": name}, key, close=False)
+            for tag, attrs in v._steps:
+                self.element(depth + 1, tag, attrs, key)
+            self.end(depth, "transform")
+            return
+        if isinstance(v, dict):
+            t = v.get("type")
+            if t in ("rgb", "spectrum"):
+                extra = set(v) - {"type", "value"}
+                if extra:
+                    raise ParameterError(f"load_dict: {key}: unknown key '{sorted(extra)[0]}' of an {t} value")  # noqa: F821
+                if "value" not in v:
+                    raise ParameterError(f"load_dict: {key}.value: an {t} value needs 'value'")  # noqa: F821
+                val = _json_ready(v["value"], f"{key}.value")
+                if isinstance(val, list):
+                    if t == "spectrum" and val and isinstance(val[0], list):  # [(wavelength, value), ...]
+                        text = ", ".join(f"{float(a)!r}:{float(b)!r}" for a, b in val)
+                    else:
+                        text = " ".join(repr(float(x)) for x in val)
+                elif isinstance(val, (int, float)) and not isinstance(val, bool):
+                    text = repr(float(val))
+                else:
+                    raise ParameterError(f"load_dict: {key}.value: expected numbers, got {val!r}")  # noqa: F821
+                self.element(depth, t, {"name": name, "value": text}, key)
+                return
+            self.plugin(depth, key, name, v)
+            return
+        if isinstance(v, (list, tuple, np.ndarray)):
+            a = np.asarray(_json_ready(np.asarray(v) if isinstance(v, np.ndarray) else v, key), dtype=object)
+            try:
+                a = np.asarray(a, dtype=float)
+            except (TypeError, ValueError):
+                raise ParameterError(f"load_dict: {key}: expected numbers, got {v!r}") from None  # noqa: F821
+            if a.shape == (4, 4):
+                self.value(depth, key, name, Transform(a))
+            elif a.shape == (3,):
+                x, y, z = (repr(float(c)) for c in a)
+                self.element(depth, "point", {"name": name, "x": x, "y": y, "z": z}, key)
+            else:
+                raise ParameterError(f"load_dict: {key}: a list is a point (3 numbers) or a transform "  # noqa: F821
+                                     f"(4x4), got shape {a.shape}")
+            return
+        v = _json_ready(v, key)
+        if isinstance(v, bool):
+            self.element(depth, "boolean", {"name": name, "value": "true" if v else "false"}, key)
+        elif isinstance(v, int):
+            self.element(depth, "integer", {"name": name, "value": str(v)}, key)
+        elif isinstance(v, float):
+            self.element(depth, "float", {"name": name, "value": repr(v)}, key)
+        elif isinstance(v, str):
+            self.element(depth, "string", {"name": name, "value": v}, key)
+        else:
+            raise TypeError(f"load_dict: '{key}' is a {type(v).__name__}; expected a plugin dict, a number, a str, "
+                            "a list or a gdr.Transform")
+
+
+def _mitsuba_dict_xml(scene):
+    """(XML text, {line: key path}) of a Mitsuba-style dict {'type': 'scene', ...}."""
+    w = _XmlWriter()
+    for k, v in scene.items():
+        if k == "type":
+            continue
+        if not isinstance(k, str):
+            raise TypeError(f"load_dict: the scene has a key {k!r} of type {type(k).__name__}; keys are str")
+        if not isinstance(v, dict):
+            raise ParameterError(f"load_dict: {k}: a scene holds plugins (dicts with a 'type'), got {v!r}")  # noqa: F821
+        w.value(1, k, None, v)
+    w.lines.append("</scene>")
+    return "\n".join(w.lines) + "\n", w.keys
+
+
+def _load_mitsuba_dict(scene, base_dir, lenient):
+    import os
+    import re
+
+    text, keys = _mitsuba_dict_xml(scene)
+    name = os.path.join(os.path.abspath(base_dir if base_dir is not None else os.getcwd()), "<dict>.xml")
+
+    def by_key(message):
+        # The importer names the generated text's lines: name the dict's keys instead.
+        prefix = re.escape(name) + r":(\d+): "
+        return re.sub(prefix, lambda m: f"{keys.get(int(m.group(1)), 'line ' + m.group(1))}: ", message)
+
+    try:
+        result = _load_mitsuba_text(text, name, bool(lenient))  # noqa: F821
+    except Error as e:  # noqa: F821
+        raise type(e)("load_dict: " + by_key(str(e))) from None
+    _remember_source(result, ("mitsuba-dict", text, name, bool(lenient)))
+    return result, [by_key(w) for w in result.warnings]
+
+
+def load_dict(scene, base_dir=None, lenient=False):
+    """load_dict(scene, base_dir=None, lenient=False) -> gdr.Scene
 
     A scene from a dict with the structure of gdr's JSON scene files ('camera', 'meshes',
     'materials', 'render', 'environment', 'animation'; README, "Scene files"): load_dict(d)
@@ -343,9 +619,28 @@ def load_dict(scene, base_dir=None):
     array (m, 3) of 0-based vertex indices, 'material': NAME, 'transform': {...}}, where the
     'materials' entry NAME defines its material ({'type': 'diffuse', 'kd': [r, g, b]}, ...);
     its faces are flat. Unknown keys raise gdr.InputError naming them, arrays of the wrong
-    dtype or shape gdr.ParameterError, NaN or Inf gdr.InputError naming the key."""
+    dtype or shape gdr.ParameterError, NaN or Inf gdr.InputError naming the key.
+
+    A dict with 'type': 'scene' is read as Mitsuba 3's load_dict reads one: {'type': 'scene',
+    'sensor': {'type': 'perspective', 'fov': 45, 'to_world': gdr.look_at(...)}, 'floor': {'type':
+    'rectangle', 'bsdf': {'type': 'diffuse', 'reflectance': {'type': 'rgb', 'value': [...]}}},
+    'integrator': {'type': 'path', 'max_depth': 8}, ...}. It becomes the equivalent Mitsuba XML and
+    is loaded by gdr's Mitsuba importer, so it supports the plugins load_scene supports in XML;
+    errors name the key path ('floor.bsdf.type: unknown plugin ...'). Transforms are gdr.Transform
+    (gdr.look_at(...), gdr.Transform().translate(...).scale(...)) or 4x4 matrices (nested lists,
+    numpy arrays); a 3-list is a point; base_dir resolves 'filename's. lenient (Mitsuba-style dicts
+    only) is load_scene's: unsupported plugins and properties become warnings instead of errors."""
     if not isinstance(scene, dict):
         raise TypeError(f"load_dict: expected a dict, got {type(scene).__name__}")
+    if "type" in scene:
+        if scene["type"] != "scene":
+            raise ParameterError(f"load_dict: type: a Mitsuba-style dict describes a 'scene', got {scene['type']!r}")  # noqa: F821
+        result, warnings = _load_mitsuba_dict(scene, base_dir, lenient)
+        for w in warnings:
+            _warnings.warn(w, SceneWarning, stacklevel=2)
+        return result
+    if lenient:
+        raise ParameterError("load_dict: lenient applies to Mitsuba-style dicts ({'type': 'scene', ...}) only")  # noqa: F821
     _check_mesh_arrays(scene)
     text = _json.dumps(_json_ready(scene, ""))
     import os
@@ -362,7 +657,8 @@ def _remember_source(scene, source):
     """Keeps what a scene was loaded from, for gdr.traverse and copy.copy."""
     scene._source = source
     scene._base_hash = scene.content_hash
-    scene._camera_changes = {}
+    scene._edits = {}         # parameters edited in place (gdr.traverse), by key
+    scene._desc_now = None    # the description with those edits (a JSON scene), once edited
 
 
 def _description(scene):
@@ -370,8 +666,13 @@ def _description(scene):
     src = getattr(scene, "_source", None)
     if src is None:
         raise TypeError("gdr: this Scene was not made by gdr.load_scene or gdr.load_dict")
+    if src[0] == "mitsuba-dict":
+        return None, None
+    name = src[2] if src[0] == "dict" else src[1]
+    if scene._desc_now is not None:
+        return scene._desc_now, name
     if src[0] == "dict":
-        return src[1], src[2]
+        return src[1], name
     path = src[1]
     if path.lower().endswith(".xml"):
         return None, None
@@ -382,6 +683,26 @@ def _description(scene):
         return None, None
 
 
+def _record_edits(scene):
+    """Makes the scene's content_hash and render headers say what was edited: a JSON scene hashes as
+    its edited description would load (load_dict of it gives the same hash), a Mitsuba scene as its
+    file's hash and the edits together; renders record the edits as metadata 'scene_edits'."""
+    import os
+
+    edits = _json.dumps(scene._edits, sort_keys=True)
+    src = scene._source
+    if scene._desc_now is not None:
+        if src[0] == "dict":
+            name, inputs = src[2], list(scene.inputs)
+        else:  # the file no longer describes the scene: its edited description, beside it, does
+            name, inputs = os.path.join(os.path.dirname(os.path.abspath(src[1])), "<dict>"), list(scene.inputs)[1:]
+        digest = _scene_text_hash(_json.dumps(scene._desc_now), name, inputs)  # noqa: F821
+    else:
+        digest = _scene_text_hash(_json.dumps({"scene_hash": scene._base_hash, "edits": scene._edits}),  # noqa: F821
+                                  scene.path, [])
+    _set_edits(scene, edits, digest)  # noqa: F821
+
+
 _CAMERA_KEYS = ("position", "target", "up", "fov", "fov_axis", "width", "height")
 _MATERIAL_KEYS = ("kd", "ks", "ke", "alpha", "ns", "eta")
 
@@ -390,9 +711,8 @@ class SceneParameters:
     """A scene's editable parameters (gdr.traverse), by dotted key: 'camera.position', 'camera.fov',
     'camera.width', 'materials.NAME.kd', 'materials.NAME.alpha' (roughness), 'materials.NAME.ke'
     (emitted radiance), 'meshes[I].transform', 'environment.radiance', ... Assign new values, then
-    call update(): a change of the camera alone rebuilds the camera in place; any other rebuilds the
-    scene from its changed description (its meshes are read again). The Scene object stays the
-    same, so renders of it see the new values."""
+    call update(): each change is made in the loaded scene itself, rebuilding only what depends on
+    it (docs/python.md, "Editing a scene in place"); no scene file or mesh is read again."""
 
     def __init__(self, scene):
         self._scene = scene
@@ -411,9 +731,15 @@ class SceneParameters:
         self._values.update({"camera.fov": scene.fov, "camera.fov_axis": scene.fov_axis,
                              "camera.width": scene.width, "camera.height": scene.height})
         for name, fields in (self._desc.get("materials") or {}).items():
+            # The values the material has where its entry does not give them (its MTL's, or the
+            # defaults); an animated scene, not edited in place, lists its entries' own.
+            try:
+                known = _material_values(scene, name, _json.dumps(fields))  # noqa: F821
+            except Error:  # noqa: F821
+                known = {}
             for k in _MATERIAL_KEYS:
-                if k in fields:
-                    self._values[f"materials.{name}.{k}"] = fields[k]
+                if k in fields or k in known:
+                    self._values[f"materials.{name}.{k}"] = fields[k] if k in fields else known[k]
         for i, m in enumerate(self._desc.get("meshes") or []):
             if isinstance(m, dict) and "transform" in m:
                 self._values[f"meshes[{i}].transform"] = m["transform"]
@@ -452,6 +778,8 @@ class SceneParameters:
         value = _json_ready(value, key)
         if isinstance(old, list) and not (isinstance(value, list) and len(value) == len(old)):
             raise ParameterError(f"gdr.traverse: '{key}' takes a list of {len(old)} numbers, got {value!r}")  # noqa: F821
+        if isinstance(old, list) and not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+            raise ParameterError(f"gdr.traverse: '{key}' takes a list of {len(old)} numbers, got {value!r}")  # noqa: F821
         if isinstance(old, (int, float)) and not isinstance(old, bool) and (
                 isinstance(value, bool) or not isinstance(value, (int, float))):
             raise ParameterError(f"gdr.traverse: '{key}' takes a number, got {value!r}")  # noqa: F821
@@ -463,54 +791,83 @@ class SceneParameters:
         return "gdr.SceneParameters({" + ", ".join(f"{k!r}: {self[k]!r}" for k in self._values) + "})"
 
     def update(self):
-        """Applies the assigned values to the scene; returns the keys that changed."""
+        """Applies the assigned values to the scene in place; returns the keys that changed.
+
+        A material's values rebuild its BSDF (and, for 'ke', the light distribution); a mesh's
+        transform moves its triangles and rebuilds the BVH; the environment's values rebuild the
+        environment and the light distribution; the camera's rebuild the camera. A refused value
+        raises naming its key; the changes applied before it stay applied (and recorded)."""
         changed = {k: v for k, v in self._pending.items() if v != self._values[k]}
         self._pending = {}
         if not changed:
             return []
         scene = self._scene
-        if all(k.startswith("camera.") for k in changed):
-            cam = {k.split(".", 1)[1]: v for k, v in changed.items()}
+        try:
             if self._desc is None:
-                if "width" in cam or "height" in cam:
-                    scene.set_resolution(cam.get("width", scene.width), cam.get("height", scene.height))
-                if "fov" in cam or "fov_axis" in cam:
-                    scene.set_fov(cam.get("fov", scene.fov), cam.get("fov_axis"))
+                self._update_mitsuba_camera(changed)
             else:
-                scene._camera_changes.update(cam)
-                salt = scene._base_hash + _json.dumps(scene._camera_changes, sort_keys=True)
-                _set_camera(scene, cam, salt)  # noqa: F821
-                self._desc.setdefault("camera", {}).update(cam)
-        else:
-            if self._desc is None:
-                raise ParameterError("gdr.traverse: a Mitsuba scene's camera optics are its only parameters")  # noqa: F821
-            for k, v in changed.items():
-                self._set_in_desc(k, v)
-            optics = (scene.width, scene.height, scene.fov, scene.fov_axis)
-            fresh = _load_scene_text(_json.dumps(self._desc), self._name)  # noqa: F821
-            # set_resolution and set_fov called on the scene itself hold for the rebuilt one.
-            if (fresh.width, fresh.height) != optics[:2]:
-                fresh.set_resolution(*optics[:2])
-            if (fresh.fov, fresh.fov_axis) != optics[2:]:
-                fresh.set_fov(*optics[2:])
-            _replace_scene(scene, fresh)  # noqa: F821
-            _remember_source(scene, ("dict", _json.loads(_json.dumps(self._desc)), self._name))
-        self._values.update(changed)
+                self._update_description(changed)
+        finally:
+            _record_edits(scene)
         return sorted(changed)
 
-    def _set_in_desc(self, key, value):
-        if key.startswith("meshes["):
-            i = int(key[len("meshes["):key.index("]")])
-            self._desc["meshes"][i]["transform"] = value
-            return
-        parts = key.split(".")
-        node = self._desc
-        if parts[0] == "materials":
-            node = node["materials"][".".join(parts[1:-1])]
-        else:
-            for p in parts[:-1]:
-                node = node.setdefault(p, {})
-        node[parts[-1]] = value
+    def _applied(self, keys, changed):
+        for k in keys:
+            self._values[k] = changed[k]
+            self._scene._edits[k] = changed[k]
+        if self._desc is not None:
+            self._scene._desc_now = _json.loads(_json.dumps(self._desc))
+
+    def _update_mitsuba_camera(self, changed):
+        scene = self._scene
+        if any(not k.startswith("camera.") for k in changed):
+            raise ParameterError("gdr.traverse: a Mitsuba scene's camera optics are its only parameters")  # noqa: F821
+        cam = {k.split(".", 1)[1]: v for k, v in changed.items()}
+        if "width" in cam or "height" in cam:
+            scene.set_resolution(cam.get("width", scene.width), cam.get("height", scene.height))
+        if "fov" in cam or "fov_axis" in cam:
+            scene.set_fov(cam.get("fov", scene.fov), cam.get("fov_axis"))
+        self._applied(changed, changed)
+
+    def _update_description(self, changed):
+        scene = self._scene
+        materials, meshes, env, camera = {}, [], [], []
+        for k in changed:
+            if k.startswith("materials."):
+                materials.setdefault(k[len("materials."):k.rindex(".")], []).append(k)
+            elif k.startswith("meshes["):
+                meshes.append(k)
+            elif k.startswith("environment."):
+                env.append(k)
+            else:
+                camera.append(k)
+        for name, keys in materials.items():
+            fields = dict(self._desc["materials"][name])
+            for k in keys:
+                fields[k.rsplit(".", 1)[1]] = changed[k]
+            _edit_material(scene, name, _json.dumps(fields))  # noqa: F821
+            self._desc["materials"][name] = fields
+            self._applied(keys, changed)
+        for k in meshes:
+            i = int(k[len("meshes["):k.index("]")])
+            _edit_mesh_transform(scene, i, _json.dumps(changed[k]))  # noqa: F821
+            self._desc["meshes"][i]["transform"] = changed[k]
+            self._applied([k], changed)
+        if env:
+            fields = dict(self._desc["environment"])
+            for k in env:
+                fields[k.split(".", 1)[1]] = changed[k]
+            _edit_environment(scene, _json.dumps(fields))  # noqa: F821
+            self._desc["environment"] = fields
+            self._applied(env, changed)
+        if camera:
+            cam = {k.split(".", 1)[1]: changed[k] for k in camera}
+            try:
+                _set_camera(scene, cam)  # noqa: F821 (the hash is set by _record_edits)
+            except Error as e:  # noqa: F821 (the camera's own message names no key)
+                raise type(e)(f"gdr.traverse: {', '.join(sorted(camera))}: {e}") from None
+            self._desc.setdefault("camera", {}).update(cam)
+            self._applied(camera, changed)
 
 
 def traverse(scene):
@@ -519,12 +876,17 @@ def traverse(scene):
     The scene's editable parameters by dotted key (camera pose, field of view and resolution,
     materials' colours, roughness 'alpha' and emission 'ke', meshes' transforms, the environment's
     radiance), for a scene from load_dict or a JSON scene file; the camera's optics for a Mitsuba
-    scene. Assign values, then call .update() (as Mitsuba 3's mi.traverse):
+    scene. Assign values, then call .update() (as Mitsuba 3's mi.traverse): the loaded scene is
+    changed in place, rebuilding only what the change touches (a material's BSDF, the light
+    distribution, one mesh's vertices and the BVH, the camera):
 
         params = gdr.traverse(scene)
         params['materials.floor.alpha'] = 0.05
         params.update()
-        gdr.render(scene)  # the same scene object, with the new roughness"""
+        gdr.render(scene)  # the same scene object, with the new roughness
+
+    Afterwards scene.content_hash is the edited description's (load_dict of it hashes the same)
+    and renders record the edits in their metadata as 'scene_edits'."""
     return SceneParameters(scene)
 
 
@@ -532,20 +894,26 @@ def _copy_scene(scene, memo=None):
     src = getattr(scene, "_source", None)
     if src is None:
         raise TypeError("gdr: only a Scene made by gdr.load_scene or gdr.load_dict can be copied")
-    if src[0] == "dict":
+    if scene._desc_now is not None:  # edited in place: the edited description
+        new = _load_scene_text(_json.dumps(scene._desc_now), src[2] if src[0] == "dict" else src[1])  # noqa: F821
+    elif src[0] == "dict":
         new = _load_scene_text(_json.dumps(src[1]), src[2])  # noqa: F821
+    elif src[0] == "mitsuba-dict":
+        new = _load_mitsuba_text(src[1], src[2], src[3])  # noqa: F821
     else:
         new = _load_scene_core(src[1], src[2], src[3])
     _remember_source(new, src)
-    if scene._camera_changes:
-        new._camera_changes = dict(scene._camera_changes)
-        new._base_hash = scene._base_hash
-        _set_camera(new, new._camera_changes, scene._base_hash + _json.dumps(new._camera_changes, sort_keys=True))  # noqa: F821
+    new._base_hash = scene._base_hash
+    if scene._edits:
+        new._edits = _json.loads(_json.dumps(scene._edits))
+        new._desc_now = _json.loads(_json.dumps(scene._desc_now)) if scene._desc_now is not None else None
     # set_resolution and set_fov called on the scene itself.
     if (new.width, new.height) != (scene.width, scene.height):
         new.set_resolution(scene.width, scene.height)
     if (new.fov, new.fov_axis) != (scene.fov, scene.fov_axis):
         new.set_fov(scene.fov, scene.fov_axis)
+    if scene._edits:
+        _set_edits(new, _json.dumps(new._edits, sort_keys=True), scene.content_hash)  # noqa: F821
     return new
 
 

@@ -46,6 +46,7 @@
 #include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/exr.h"
+#include "gdr/io/mitsuba_xml.h"
 #include "gdr/io/png.h"
 #include "gdr/io/render_header.h"
 #include "gdr/io/scene_file.h"
@@ -174,6 +175,9 @@ py::dict params_dict(const gdr::Params& p) {
 struct PyScene {
     gdr::SceneFile sf;            ///< The scene and what its file said.
     std::atomic<int> renders{0};  ///< Renders running on it (changing the camera is refused meanwhile).
+    /// The parameters edited in place since loading (gdr.traverse), as JSON
+    /// {key: value}; written to render headers as 'scene_edits'; empty if none.
+    std::string edits;
 
     /// Throws RuntimeFailure if a render is running (`what` names the change).
     void require_idle(const std::string& what) const {
@@ -182,10 +186,15 @@ struct PyScene {
     }
 };
 
+/// Scene files and texts loaded by this module (gdr._scene_loads()): tests
+/// check with it that editing a scene in place reads no scene again.
+std::atomic<long long> g_scene_loads{0};
+
 /// gdr.load_scene: the scene file at `path`, loaded without the GIL.
 std::shared_ptr<PyScene> load_scene(const fs::path& path, const py::object& defines, bool lenient) {
     gdr::SceneFileOptions options;
     options.lenient = lenient;
+    options.editable = true;  // gdr.traverse edits it in place
     if (!defines.is_none())
         for (const auto& [k, v] : as_dict(defines, "load_scene: defines")) {
             // As the command line's -D name=value: text, with Python's booleans spelt as XML's.
@@ -195,6 +204,7 @@ std::shared_ptr<PyScene> load_scene(const fs::path& path, const py::object& defi
     auto scene = std::make_shared<PyScene>();
     try {
         py::gil_scoped_release nogil;
+        ++g_scene_loads;
         scene->sf = gdr::load_scene_file(path.string(), options);
     } catch (const gdr::InputError& e) {
         raise_if_unreadable(path, e.what());
@@ -522,6 +532,8 @@ void record_render(gdr::FrameBuffer& fb, const PyScene& scene, const std::string
     const fs::path abs = fs::absolute(scene.sf.path, ec);
     r.scene = ec ? scene.sf.path : abs.string();
     r.scene_hash = scene.sf.content_hash;
+    // The scene rendered is the file's with these values changed (its hash is the edited description's).
+    if (!scene.edits.empty()) fb.metadata()["scene_edits"] = scene.edits;
     r.seconds = stats.seconds;
     r.time_budget = st.time_budget;
     // As gdr render: an adaptive render's target is the passes after its pilot's share.
@@ -819,13 +831,70 @@ void bind_package(py::module_& m) {
         [](const std::string& text, const std::string& name) {
             auto scene = std::make_shared<PyScene>();
             py::gil_scoped_release nogil;
-            scene->sf = gdr::load_scene_text(text, name);
+            ++g_scene_loads;
+            scene->sf = gdr::load_scene_text(text, name, true);
             return scene;
         },
         py::arg("text"), py::arg("name"));
+    m.def("_scene_loads", [] { return g_scene_loads.load(); });
+    m.def(
+        "_load_mitsuba_text",
+        [](const std::string& text, const std::string& name, bool lenient) {
+            auto scene = std::make_shared<PyScene>();
+            gdr::SceneFileOptions options;
+            options.text = text;
+            options.lenient = lenient;
+            py::gil_scoped_release nogil;
+            ++g_scene_loads;
+            scene->sf = gdr::load_mitsuba_scene(name, options);
+            return scene;
+        },
+        py::arg("text"), py::arg("name"), py::arg("lenient") = false);
+    m.def(
+        "_edit_material",
+        [](PyScene& s, const std::string& name, const std::string& fields) {
+            s.require_idle("change a material");
+            gdr::edit_material(s.sf, name, fields);
+        },
+        py::arg("scene"), py::arg("name"), py::arg("fields"));
+    m.def(
+        "_material_values",
+        [](PyScene& s, const std::string& name, const std::string& fields) {
+            const gdr::MaterialDesc d = gdr::material_description(s.sf, name, fields);
+            const auto rgb = [](const gdr::Color& c) { return std::vector<double>{c.r, c.g, c.b}; };
+            py::dict v;
+            v["kd"] = rgb(d.kd), v["ks"] = rgb(d.ks), v["ke"] = rgb(d.ke);
+            v["ns"] = double(d.ns), v["eta"] = double(d.ni);
+            if (d.pr >= 0.f) v["alpha"] = double(d.pr);
+            return v;
+        },
+        py::arg("scene"), py::arg("name"), py::arg("fields"));
+    m.def(
+        "_edit_mesh_transform",
+        [](PyScene& s, size_t index, const std::string& transform) {
+            s.require_idle("move a mesh");
+            gdr::edit_mesh_transform(s.sf, index, transform);
+        },
+        py::arg("scene"), py::arg("index"), py::arg("transform"));
+    m.def(
+        "_edit_environment",
+        [](PyScene& s, const std::string& environment) {
+            s.require_idle("change the environment");
+            gdr::edit_environment(s.sf, environment);
+        },
+        py::arg("scene"), py::arg("environment"));
+    m.def(
+        "_set_edits",
+        [](PyScene& s, const std::string& edits, const std::string& content_hash) {
+            s.require_idle("record edits");
+            s.edits = edits;
+            s.sf.content_hash = content_hash;
+        },
+        py::arg("scene"), py::arg("edits"), py::arg("content_hash"));
+    m.def("_scene_text_hash", &gdr::scene_text_hash, py::arg("text"), py::arg("name"), py::arg("inputs"));
     m.def(
         "_set_camera",
-        [](PyScene& s, const py::dict& changes, const std::string& hash_salt) {
+        [](PyScene& s, const py::dict& changes) {
             s.require_idle("change the camera");
             if (s.sf.animation) throw gdr::ParameterError(s.sf.path + ": an animated scene's camera follows its keys");
             gdr::CameraDesc d = s.sf.scene->camera().desc();
@@ -846,22 +915,9 @@ void bind_package(py::module_& m) {
             if (changes.contains("width")) d.width = changes["width"].cast<int>();
             if (changes.contains("height")) d.height = changes["height"].cast<int>();
             s.sf.scene->set_camera(gdr::Camera(d));  // rejects a degenerate camera
-            // Renders of the moved camera are renders of another image: the hash (of the
-            // loaded scene's hash and the camera, given by the caller) says so.
-            uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64
-            for (unsigned char b : hash_salt) h = (h ^ b) * 0x100000001b3ull;
-            char hex[17];
-            std::snprintf(hex, sizeof hex, "%016llx", (unsigned long long)h);
-            s.sf.content_hash = hex;
+            // The content hash and the render headers record the change through _set_edits.
         },
-        py::arg("scene"), py::arg("changes"), py::arg("hash_salt"));
-    m.def(
-        "_replace_scene",
-        [](PyScene& target, PyScene& source) {
-            target.require_idle("update the scene");
-            target.sf = std::move(source.sf);
-        },
-        py::arg("target"), py::arg("source"));
+        py::arg("scene"), py::arg("changes"));
     m.def(
         "_load_plugin",
         [](const std::optional<fs::path>& file) {

@@ -522,8 +522,10 @@ private:
 
 void Importer::load_doc(const std::string& file, xml_node from) {
     std::string text;
+    // The scene's own text may be given instead of its file (SceneFileOptions::text).
+    const bool given = docs_.empty() && !opt_.text.empty();
     try {
-        text = detail::read_file_text(file);
+        text = given ? opt_.text : detail::read_file_text(file);
     } catch (const InputError& e) {
         if (from) fail(from, e.what());
         throw;
@@ -551,7 +553,7 @@ void Importer::load_doc(const std::string& file, xml_node from) {
         for (xml_node c = e.first_child(); c; c = c.next_sibling())
             if (c.type() == pugi::node_element) stack.emplace_back(c, depth + 1);
     }
-    inputs_.push_back(file);
+    if (!given) inputs_.push_back(file);
     const xml_node scene = d.xml.document_element();
     if (std::string(scene.name()) != "scene")
         throw InputError(fmt::format("{}:{}: the root element is <{}>, not <scene>: not a Mitsuba scene file", file,
@@ -2047,6 +2049,12 @@ SceneFile Importer::run() {
     for (std::string& f : inputs_)
         if (seen.insert(f).second) sf.inputs.push_back(std::move(f));
     sf.content_hash = scene_content_hash(path_, sf.inputs);
+    if (!opt_.text.empty()) {
+        // No file holds the scene: its text is hashed with the files it read (FNV-1a 64).
+        uint64_t h = 0xcbf29ce484222325ull;
+        for (const unsigned char c : opt_.text + '\0' + sf.content_hash) h = (h ^ c) * 0x100000001b3ull;
+        sf.content_hash = fmt::format("{:016x}", h);
+    }
     if (!opt_.defines.empty()) {
         // -D values make another scene of the same files: they are hashed too (FNV-1a 64).
         std::string key = sf.content_hash;

@@ -588,8 +588,47 @@ std::string library_of_overrides(const std::string& obj, const std::map<std::str
 
 }  // namespace
 
+// What editing a loaded scene in place needs (SceneFile::edit).
+struct SceneEditState {
+    // One material the scene file's `materials` overrides: Scene material
+    // `index`, described by `base` before the override.
+    struct MaterialRecord {
+        uint32_t index;
+        MaterialDesc base;
+    };
+    std::map<std::string, std::vector<MaterialRecord>> materials;  // by the overriding name
+    // A mesh entry's triangles before its transform, as read (OBJ order,
+    // before a mirroring transform's swap of corners): 3 corners per triangle.
+    struct Object {
+        std::vector<Vec3> positions;
+        std::vector<Vec3> normals;         // vertex normals as read, where has_normals
+        std::vector<uint8_t> has_normals;  // per triangle: the file gave vertex normals (else the face normal)
+        Mat4 transform{1.f};               // the transform it is placed with now
+    };
+    std::vector<Object> objects;
+};
 
 namespace {
+
+// World-space corners and raw vertex normals of object `o` under transform
+// `xf`, triangle for triangle as load_obj_impl and load_inline_mesh place them
+// (the same operations, so the same bits).
+void place_object(const SceneEditState::Object& o, const Mat4& xf, std::vector<Vec3>& positions, std::vector<Vec3>& normals) {
+    const glm::mat3 nxf = glm::transpose(glm::inverse(glm::mat3(xf)));
+    const bool flip = glm::determinant(glm::mat3(xf)) < 0.f;
+    positions.resize(o.positions.size());
+    normals.resize(o.positions.size());
+    for (size_t t = 0; 3 * t < o.positions.size(); ++t) {
+        Vec3 p[3], n[3];
+        for (int k = 0; k < 3; ++k) {
+            p[k] = Vec3(xf * Vec4(o.positions[3 * t + k], 1.f));
+            if (o.has_normals[t]) n[k] = nxf * o.normals[3 * t + k];
+        }
+        if (flip) std::swap(p[1], p[2]), std::swap(n[1], n[2]);
+        if (!o.has_normals[t]) n[0] = n[1] = n[2] = glm::cross(p[1] - p[0], p[2] - p[0]);
+        for (int k = 0; k < 3; ++k) positions[3 * t + k] = p[k], normals[3 * t + k] = n[k];
+    }
+}
 
 // A mesh given by its arrays (meshes[i] = {"vertices": [[x, y, z], ...], "triangles":
 // [[i, j, k], ...] (0-based), "material": NAME of a `materials` entry, which then
@@ -597,14 +636,15 @@ namespace {
 // texture coordinates, winding reversed under a mirroring transform.
 void load_inline_mesh(const std::string& file, const std::string& where, const json& m, const Mat4& xf,
                       const std::map<std::string, Override>& overrides, std::set<std::string>& used,
-                      TriangleMesh& mesh, std::vector<Material>& materials) {
+                      TriangleMesh& mesh, std::vector<Material>& materials, SceneEditState* edit) {
     const json& v = m["vertices"];
     if (!v.is_array() || v.empty()) fail(file, "'" + where + ".vertices' must be a non-empty array of [x, y, z]");
-    std::vector<Vec3> vs;
+    std::vector<Vec3> vs, local;
     for (size_t i = 0; i < v.size(); ++i) {
         const std::string at = where + ".vertices[" + std::to_string(i) + "]";
         const std::vector<double> x = finite_numbers(file, at, v[i], 3, "[x, y, z]");
-        vs.push_back(Vec3(xf * Vec4(float(x[0]), float(x[1]), float(x[2]), 1.f)));
+        local.push_back(Vec3(float(x[0]), float(x[1]), float(x[2])));
+        vs.push_back(Vec3(xf * Vec4(local.back(), 1.f)));
     }
     if (!m.contains("triangles") || !m["triangles"].is_array() || m["triangles"].empty())
         fail(file, "'" + where + ".triangles' must be a non-empty array of [i, j, k] (0-based vertex indices)");
@@ -617,6 +657,7 @@ void load_inline_mesh(const std::string& file, const std::string& where, const j
         used.insert(name);
         MaterialDesc d;
         d.name = name;
+        if (edit) edit->materials[name].push_back({uint32_t(materials.size()), d});
         d = apply_override(file, d, it->second);
         Material mat;
         mat.name = name;
@@ -645,6 +686,11 @@ void load_inline_mesh(const std::string& file, const std::string& where, const j
                 fail(file, "'" + at + "' holds " + x.dump() + ", not a vertex index in [0, " +
                            std::to_string(vs.size() - 1) + "]");
             p[k] = vs[size_t(x.get<long long>())];
+            if (edit) edit->objects.back().positions.push_back(local[size_t(x.get<long long>())]);
+        }
+        if (edit) {
+            edit->objects.back().normals.resize(edit->objects.back().positions.size());
+            edit->objects.back().has_normals.push_back(0);
         }
         if (flip) std::swap(p[1], p[2]);
         const Vec3 n = glm::cross(p[1] - p[0], p[2] - p[0]);
@@ -665,7 +711,7 @@ void load_inline_mesh(const std::string& file, const std::string& where, const j
 void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, std::vector<Material>& materials,
                    const std::map<std::string, Override>* overrides, const std::string& scene_file,
                    std::set<std::string>* used_overrides, const std::string& mtl = "",
-                   std::vector<std::string>* inputs = nullptr) {
+                   std::vector<std::string>* inputs = nullptr, SceneEditState* edit = nullptr) {
     if (const std::string why = not_a_file(path); !why.empty()) throw InputError(path + why);
     const ObjLines lines = check_obj_lines(path);
     const std::vector<std::string>& libraries = lines.libraries;
@@ -749,6 +795,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
         if (overrides) {
             auto it = overrides->find(mt.name);
             if (it != overrides->end()) {
+                if (edit) edit->materials[mt.name].push_back({uint32_t(materials.size()), d});
                 d = apply_override(scene_file, d, it->second);
                 type = it->second.type;
                 used_overrides->insert(mt.name);
@@ -826,6 +873,17 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
                     uv[k] = Vec2(0.f);
                 }
             }
+            if (edit) {
+                SceneEditState::Object& o = edit->objects.back();
+                for (int k = 0; k < 3; ++k) {
+                    const int vi = c[k].vertex_index;
+                    o.positions.push_back(Vec3(attrib.vertices[3 * vi], attrib.vertices[3 * vi + 1], attrib.vertices[3 * vi + 2]));
+                    const int ni = c[k].normal_index;
+                    o.normals.push_back(has_n ? Vec3(attrib.normals[3 * ni], attrib.normals[3 * ni + 1], attrib.normals[3 * ni + 2])
+                                              : Vec3(0.f));
+                }
+                o.has_normals.push_back(has_n ? 1 : 0);
+            }
             if (flip) std::swap(p[1], p[2]), std::swap(n[1], n[2]), std::swap(uv[1], uv[2]);
             if (!has_n) {
                 // Flat faces carry their face normal so one mesh can mix smooth and flat parts.
@@ -862,8 +920,8 @@ void load_obj(const std::string& path, const Mat4& transform, TriangleMesh& mesh
     load_obj_impl(path, transform, mesh, materials, nullptr, "", nullptr);
 }
 
-static SceneFile load_scene_file_impl(const std::string& path);
-static SceneFile load_scene_json(json j, const std::string& path, const fs::path& dir, bool is_file);
+static SceneFile load_scene_file_impl(const std::string& path, bool editable);
+static SceneFile load_scene_json(json j, const std::string& path, const fs::path& dir, bool is_file, bool editable);
 
 // Mitsuba XML: by the name, or by a first character no JSON file starts with.
 static bool is_mitsuba_xml(const std::string& path) {
@@ -885,21 +943,25 @@ SceneFile load_scene_file(const std::string& path, const SceneFileOptions& optio
     if (!options.defines.empty())
         throw InputError(path + ": -D " + options.defines.begin()->first +
                          "=...: parameters apply to Mitsuba XML scenes only, not to JSON scene files");
-    return load_scene_file(path);
+    try {
+        return load_scene_file_impl(path, options.editable);
+    } catch (const json::exception& e) {
+        throw InputError(path + ": " + e.what());
+    }
 }
 
 SceneFile load_scene_file(const std::string& path) {
     std::error_code ec;
     if (!fs::is_directory(path, ec) && is_mitsuba_xml(path)) return load_mitsuba_scene(path, {});
     try {
-        return load_scene_file_impl(path);
+        return load_scene_file_impl(path, false);
     } catch (const json::exception& e) {
         // Type errors (a string where a number belongs) surface here.
         throw InputError(path + ": " + e.what());
     }
 }
 
-static SceneFile load_scene_file_impl(const std::string& path) {
+static SceneFile load_scene_file_impl(const std::string& path, bool editable) {
     std::error_code ec;
     if (fs::is_directory(path, ec)) {
         std::string hint;
@@ -907,12 +969,21 @@ static SceneFile load_scene_file_impl(const std::string& path) {
             hint = " (did you mean " + (fs::path(path) / "scene.json").string() + "?)";
         throw InputError(path + ": is a directory, not a scene file" + hint);
     }
-    return load_scene_json(parse_json_file(path), path, fs::path(path).parent_path(), true);
+    return load_scene_json(parse_json_file(path), path, fs::path(path).parent_path(), true, editable);
 }
 
 // A scene from its JSON value: `path` names it in messages and in SceneFile::path,
 // relative files are found in `dir`; `is_file`: `path` is a file, hashed first of its inputs.
-static SceneFile load_scene_json(json j, const std::string& path, const fs::path& dir, bool is_file) {
+// The content_hash of a scene described by `j` that is no file and read `inputs`:
+// its JSON text stands first, then the files it read.
+static std::string description_hash(const json& j, const std::string& path, const std::vector<std::string>& inputs) {
+    uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64, as scene_content_hash
+    for (const std::string& part : {j.dump(), scene_content_hash(path, inputs)})
+        for (unsigned char b : part + '\0') h = (h ^ b) * 0x100000001b3ull;
+    return fmt::format("{:016x}", h);
+}
+
+static SceneFile load_scene_json(json j, const std::string& path, const fs::path& dir, bool is_file, bool editable) {
     check_keys(path, "the scene", j,
                {"camera", "meshes", "materials", "render", "description", "environment", "lights", "animation"});
     if (!j.contains("camera")) fail(path, "missing 'camera'");
@@ -962,20 +1033,23 @@ static SceneFile load_scene_json(json j, const std::string& path, const fs::path
     TriangleMesh mesh;
     std::vector<Material> materials;
     std::set<std::string> used;
+    auto edit = editable ? std::make_shared<SceneEditState>() : nullptr;
     std::vector<TransformTrack> tracks;
     bool any_keys = !camera_track.empty();
     for (const auto& m : j["meshes"]) {
         const size_t first = mesh.size();
         const std::string where = "meshes[" + std::to_string(tracks.size()) + "]";
         std::string file;
+        if (edit) edit->objects.emplace_back();
         if (m.is_string()) {
             file = resolve_path(path, m.get<std::string>(), where);
-            load_obj_impl(file, Mat4(1.f), mesh, materials, &overrides, path, &used, "", &inputs);
+            load_obj_impl(file, Mat4(1.f), mesh, materials, &overrides, path, &used, "", &inputs, edit.get());
         } else if (m.is_object() && m.contains("vertices")) {
             check_keys(path, where, m, {"vertices", "triangles", "material", "transform"});
             const Mat4 xf = m.contains("transform") ? parse_transform(path, m["transform"]) : Mat4(1.f);
             file = where;
-            load_inline_mesh(path, where, m, xf, overrides, used, mesh, materials);
+            if (edit) edit->objects.back().transform = xf;
+            load_inline_mesh(path, where, m, xf, overrides, used, mesh, materials, edit.get());
         } else {
             check_keys(path, "meshes[]", m, {"file", "transform", "mtl", "keys"});
             if (m.contains("keys")) {
@@ -988,7 +1062,8 @@ static SceneFile load_scene_json(json j, const std::string& path, const fs::path
             const std::string mtl = m.contains("mtl") ? resolve_path(path, m["mtl"].get<std::string>(), where + ".mtl")
                                                       : std::string();
             file = resolve_path(path, m["file"].get<std::string>(), where + ".file");
-            load_obj_impl(file, xf, mesh, materials, &overrides, path, &used, mtl, &inputs);
+            if (edit) edit->objects.back().transform = xf;
+            load_obj_impl(file, xf, mesh, materials, &overrides, path, &used, mtl, &inputs, edit.get());
         }
         if (tracks.size() == sf.meshes.size()) tracks.emplace_back();
         mesh.object_ids.resize(mesh.size(), uint32_t(sf.meshes.size()));
@@ -1054,6 +1129,7 @@ static SceneFile load_scene_json(json j, const std::string& path, const fs::path
         sf.frame = range->first;
     } else {
         sf.scene = std::make_unique<Scene>(std::move(mesh), std::move(materials), camera, path);
+        sf.edit = std::move(edit);  // an animation's frames are rebuilt from its objects: not editable in place
         if (env) sf.scene->set_environment(std::move(env));
         if (!lights.empty()) sf.scene->set_delta_lights(std::move(lights), path);
     }
@@ -1064,21 +1140,131 @@ static SceneFile load_scene_json(json j, const std::string& path, const fs::path
     if (is_file) {
         sf.content_hash = scene_content_hash(path, sf.inputs);
     } else {
-        // No file holds the scene: its JSON text stands first, then the files it read.
-        uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a 64, as scene_content_hash
-        for (const std::string& part : {j.dump(), scene_content_hash(path, sf.inputs)})
-            for (unsigned char b : part + '\0') h = (h ^ b) * 0x100000001b3ull;
-        sf.content_hash = fmt::format("{:016x}", h);
+        sf.content_hash = description_hash(j, path, sf.inputs);
     }
     return sf;
 }
 
-SceneFile load_scene_text(const std::string& text, const std::string& name) {
+SceneFile load_scene_text(const std::string& text, const std::string& name, bool editable) {
     try {
-        return load_scene_json(parse_json_text(name, text), name, fs::path(name).parent_path(), false);
+        return load_scene_json(parse_json_text(name, text), name, fs::path(name).parent_path(), false, editable);
     } catch (const json::exception& e) {
         throw InputError(name + ": " + e.what());
     }
+}
+
+std::string scene_text_hash(const std::string& text, const std::string& name, const std::vector<std::string>& inputs) {
+    return description_hash(parse_json_text(name, text), name, inputs);
+}
+
+// The edit state of `sf`; ParameterError naming `what` where it has none.
+static SceneEditState& edit_state(SceneFile& sf, const std::string& what) {
+    if (!sf.scene) throw ParameterError(what + ": no scene is loaded");
+    if (sf.animation) throw ParameterError(sf.path + ": " + what + ": an animated scene is edited in its file (its frames are built from it)");
+    if (!sf.edit) throw ParameterError(sf.path + ": " + what + ": the scene was not loaded editable (a JSON scene loaded with SceneFileOptions::editable)");
+    return *sf.edit;
+}
+
+// The scene-file values `fields_json` of material `name` as an Override, and the materials of that name.
+static std::pair<Override, const std::vector<SceneEditState::MaterialRecord>*> material_override(
+    SceneFile& sf, const std::string& name, const std::string& fields_json) {
+    const std::string where = "materials." + name;
+    SceneEditState& st = edit_state(sf, where);
+    const auto it = st.materials.find(name);
+    if (it == st.materials.end()) throw ParameterError(sf.path + ": " + where + ": the scene file overrides no material of that name");
+    Override o;
+    try {
+        o.fields = parse_json_text(sf.path, fields_json);
+    } catch (const json::exception& e) {
+        throw InputError(sf.path + ": " + where + ": " + e.what());
+    }
+    if (!o.fields.is_object()) fail(sf.path, "'" + where + "' must be an object");
+    if (o.fields.contains("type")) {
+        if (!o.fields["type"].is_string()) fail(sf.path, where + ".type must be a string");
+        o.type = o.fields["type"].get<std::string>();
+    }
+    return {std::move(o), &it->second};
+}
+
+MaterialDesc material_description(SceneFile& sf, const std::string& name, const std::string& fields_json) {
+    const auto [o, records] = material_override(sf, name, fields_json);
+    return apply_override(sf.path, records->front().base, o);
+}
+
+void edit_material(SceneFile& sf, const std::string& name, const std::string& fields_json) {
+    const std::string where = "materials." + name;
+    const auto [o, records] = material_override(sf, name, fields_json);
+    // Every material of the name is rebuilt before any is installed: a refused value changes nothing.
+    std::vector<std::pair<uint32_t, Material>> built;
+    for (const SceneEditState::MaterialRecord& r : *records) {
+        const MaterialDesc d = apply_override(sf.path, r.base, o);
+        Material m;
+        m.emission = d.ke;
+        try {
+            check_material_colours(d);
+            m.bsdf = o.type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, o.type);
+        } catch (const Error& e) {
+            // check_material_colours speaks of MTL's names: the message names the key.
+            const std::string what = e.what();
+            std::string key = where;
+            for (const auto& [mtl, field] : {std::pair<const char*, const char*>{"Kd ", "kd"}, {"Ks ", "ks"}, {"Ke ", "ke"}})
+                if (what.rfind(mtl, 0) == 0) key += std::string(".") + field;
+            throw InputError(sf.path + ": '" + key + "': " + what);
+        }
+        built.emplace_back(r.index, std::move(m));
+    }
+    for (auto& [index, m] : built) sf.scene->set_material(index, std::move(m.bsdf), m.emission);
+}
+
+void edit_mesh_transform(SceneFile& sf, size_t index, const std::string& transform_json) {
+    const std::string where = "meshes[" + std::to_string(index) + "].transform";
+    SceneEditState& st = edit_state(sf, where);
+    if (index >= st.objects.size())
+        throw ParameterError(fmt::format("{}: {}: the scene has {} mesh entries", sf.path, where, st.objects.size()));
+    SceneEditState::Object& o = st.objects[index];
+    Mat4 xf(1.f);
+    try {
+        const json j = parse_json_text(sf.path, transform_json);
+        if (!j.is_null()) xf = parse_transform(sf.path + ": " + where, j);
+    } catch (const json::exception& e) {
+        throw InputError(sf.path + ": " + where + ": " + e.what());
+    }
+    if ((glm::determinant(glm::mat3(xf)) < 0.f) != (glm::determinant(glm::mat3(o.transform)) < 0.f))
+        throw ParameterError(sf.path + ": " + where + ": a change between a mirroring and a non-mirroring transform "
+                             "reorders the triangles' corners; load the edited scene instead");
+    std::vector<Vec3> now_p, now_n, new_p, new_n;
+    place_object(o, o.transform, now_p, now_n);
+    place_object(o, xf, new_p, new_n);
+    // Loading drops zero-area triangles: the edit must keep the same ones.
+    std::vector<Vec3> kept_p, kept_n;
+    for (size_t t = 0; 3 * t < new_p.size(); ++t) {
+        const bool was = zero_area_triangle(now_p[3 * t], now_p[3 * t + 1], now_p[3 * t + 2]);
+        const bool is = zero_area_triangle(new_p[3 * t], new_p[3 * t + 1], new_p[3 * t + 2]);
+        if (was != is)
+            throw ParameterError(fmt::format("{}: {}: the transform makes triangle {} of the mesh {}; load the edited "
+                                             "scene instead", sf.path, where, t, is ? "zero-area (it would be dropped)"
+                                                                                   : "non-degenerate (it was dropped)"));
+        if (is) continue;
+        for (int k = 0; k < 3; ++k) kept_p.push_back(new_p[3 * t + k]), kept_n.push_back(new_n[3 * t + k]);
+    }
+    try {
+        sf.scene->set_object_geometry(uint32_t(index), kept_p, sf.scene->mesh().normals.empty() ? std::vector<Vec3>{} : kept_n);
+    } catch (const ParameterError& e) {
+        throw ParameterError(sf.path + ": " + where + ": " + e.what());
+    }
+    o.transform = xf;
+}
+
+void edit_environment(SceneFile& sf, const std::string& environment_json) {
+    edit_state(sf, "environment");
+    std::vector<std::string> inputs;  // the files it reads are among the scene's already
+    json j;
+    try {
+        j = parse_json_text(sf.path, environment_json);
+    } catch (const json::exception& e) {
+        throw InputError(sf.path + ": environment: " + e.what());
+    }
+    sf.scene->set_environment(j.is_null() ? nullptr : parse_environment(sf.path, j, inputs));
 }
 
 std::string scene_content_hash(const std::string& scene_path, const std::vector<std::string>& inputs) {

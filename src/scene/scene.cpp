@@ -151,10 +151,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     mesh_ = std::move(m);
     stats_.triangles = mesh_.size();
 
-    Vec3 lo(kInf), hi(-kInf);
-    for (const auto& p : mesh_.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
-    radius_ = std::max(1e-3f, 0.5f * glm::length(hi - lo));
-    center_ = 0.5f * (lo + hi);
+    compute_bounds();
 
     if (shared) {
         build_on_shared(std::move(shared), origin);
@@ -200,35 +197,119 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
     }
 
     hit_info_.resize(mesh_.size());
-    for (size_t t = 0; t < mesh_.size(); ++t) {
-        const Vec3* p = &mesh_.positions[3 * t];
-        const Vec3 ng = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
-        if (mesh_.material_ids[t] > kMaterialMask) throw InputError(origin + ": too many materials");
-        uint32_t info = mesh_.material_ids[t];
-        if (info < materials_.size() && (materials_[info].bump || materials_[info].normal_map)) info |= kPerturbed;
-        for (int k = 0; k < 3; ++k) {
-            if (!mesh_.normals.empty()) {
-                // Flat faces (vertex normals equal to the face normal) skip interpolation.
-                const Vec3& n = mesh_.normals[3 * t + k];
-                if (std::abs(n.x - ng.x) + std::abs(n.y - ng.y) + std::abs(n.z - ng.z) > 1e-6f) info |= kSmooth;
-            }
-            if (!mesh_.uvs.empty() && (mesh_.uvs[3 * t + k].x != 0.f || mesh_.uvs[3 * t + k].y != 0.f)) info |= kHasUv;
-        }
-        hit_info_[t] = info;
-    }
     // Flat triangles' frames, when the table stays small enough to be cached:
     // a hit then reads its frame instead of computing it (a square root and
     // two divisions on the way from the hit to the next ray). Big scenes keep
     // computing it: there a table read would often miss the cache.
     constexpr size_t kFrameTableBytes = size_t(1) << 20;
-    if (mesh_.size() * sizeof(Frame) <= kFrameTableBytes) {
-        flat_frames_.resize(mesh_.size());
-        for (size_t t = 0; t < mesh_.size(); ++t) {
-            const Vec3* p = &mesh_.positions[3 * t];
-            flat_frames_[t] = Frame(glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0])));
-        }
+    if (mesh_.size() * sizeof(Frame) <= kFrameTableBytes) flat_frames_.resize(mesh_.size());
+    for (size_t t = 0; t < mesh_.size(); ++t) {
+        if (mesh_.material_ids[t] > kMaterialMask) throw InputError(origin + ": too many materials");
+        classify_triangle(t);
     }
     build_lights();
+}
+
+void Scene::compute_bounds() {
+    Vec3 lo(kInf), hi(-kInf);
+    for (const auto& p : mesh_.positions) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    radius_ = std::max(1e-3f, 0.5f * glm::length(hi - lo));
+    center_ = 0.5f * (lo + hi);
+}
+
+void Scene::classify_triangle(size_t t) {
+    const Vec3* p = &mesh_.positions[3 * t];
+    const Vec3 ng = glm::normalize(glm::cross(p[1] - p[0], p[2] - p[0]));
+    uint32_t info = mesh_.material_ids[t];
+    if (info < materials_.size() && (materials_[info].bump || materials_[info].normal_map)) info |= kPerturbed;
+    for (int k = 0; k < 3; ++k) {
+        if (!mesh_.normals.empty()) {
+            // Flat faces (vertex normals equal to the face normal) skip interpolation.
+            const Vec3& n = mesh_.normals[3 * t + k];
+            if (std::abs(n.x - ng.x) + std::abs(n.y - ng.y) + std::abs(n.z - ng.z) > 1e-6f) info |= kSmooth;
+        }
+        if (!mesh_.uvs.empty() && (mesh_.uvs[3 * t + k].x != 0.f || mesh_.uvs[3 * t + k].y != 0.f)) info |= kHasUv;
+    }
+    hit_info_[t] = info;
+    if (!flat_frames_.empty()) flat_frames_[t] = Frame(ng);
+}
+
+void Scene::set_material(size_t index, std::shared_ptr<Bsdf> bsdf, const Color& emission) {
+    if (index >= materials_.size())
+        throw ParameterError(fmt::format("set_material: no material {} (the scene has {})", index, materials_.size()));
+    if (!bsdf) throw ParameterError("set_material: material '" + materials_[index].name + "' needs a BSDF");
+    for (int c = 0; c < 3; ++c)
+        if (!(emission[c] >= 0.f) || !std::isfinite(emission[c]))
+            throw ParameterError("set_material: material '" + materials_[index].name +
+                                 "': emitted radiance must be finite and not negative");
+    Material& m = materials_[index];
+    m.bsdf = std::move(bsdf);
+    // The flags the constructor caches for shift mappings' vertex classification.
+    m.min_roughness = m.bsdf->min_roughness();
+    m.pure_delta = m.bsdf->is_pure_delta();
+    m.wo_side_only = m.bsdf->wo_side_only();
+    m.black = m.bsdf->is_black();
+    const bool relight = m.emission != emission;
+    m.emission = emission;
+    if (relight) build_lights();
+}
+
+size_t Scene::object_triangles(uint32_t object_id) const {
+    if (mesh_.object_ids.empty()) return object_id == 0 ? mesh_.size() : 0;
+    return size_t(std::count(mesh_.object_ids.begin(), mesh_.object_ids.end(), object_id));
+}
+
+void Scene::set_object_geometry(uint32_t object_id, const std::vector<Vec3>& positions, const std::vector<Vec3>& normals) {
+    const std::string what = fmt::format("set_object_geometry: object {}", object_id);
+    if (shared_) throw ParameterError(what + ": the scene is built on shared geometry (an animation frame)");
+    const size_t n = object_triangles(object_id);
+    if (n == 0) throw ParameterError(what + ": the scene has no such object");
+    if (positions.size() != 3 * n)
+        throw ParameterError(fmt::format("{}: {} positions given for its {} triangles (3 each)", what, positions.size(), n));
+    if (normals.size() != (mesh_.normals.empty() ? 0 : positions.size()))
+        throw ParameterError(fmt::format("{}: {} normals given; the scene needs {}", what, normals.size(),
+                                         mesh_.normals.empty() ? 0 : positions.size()));
+    // Checked before anything changes, so a refused edit leaves the scene as it was.
+    for (size_t i = 0; i < n; ++i) {
+        const Vec3* p = &positions[3 * i];
+        for (int k = 0; k < 3; ++k)
+            if (!within_coordinate_range(p[k]))
+                throw ParameterError(fmt::format("{}: triangle {} has a vertex at ({}, {}, {}), not finite or beyond "
+                                                 "+-{:g} on an axis", what, i, p[k].x, p[k].y, p[k].z, kMaxCoordinate));
+        if (zero_area_triangle(p[0], p[1], p[2]))
+            throw ParameterError(fmt::format("{}: triangle {} would have zero area", what, i));
+    }
+    RTCGeometry geom = rtcGetGeometry(static_cast<RTCScene>(rtc_scene_), 0);
+    auto* verts = static_cast<float*>(rtcGetGeometryBufferData(geom, RTC_BUFFER_TYPE_VERTEX, 0));
+    if (!verts) throw RuntimeFailure(what + ": the Embree vertex buffer is not accessible");
+    size_t i = 0;
+    for (size_t t = 0; t < mesh_.size(); ++t) {
+        if (this->object_id(uint32_t(t)) != object_id) continue;
+        const Vec3* p = &positions[3 * i];
+        const Vec3 c = glm::cross(p[1] - p[0], p[2] - p[0]);
+        const float len = glm::length(c);
+        for (int k = 0; k < 3; ++k) {
+            const size_t v = 3 * t + k;
+            mesh_.positions[v] = p[k];
+            verts[3 * v + 0] = p[k].x, verts[3 * v + 1] = p[k].y, verts[3 * v + 2] = p[k].z;
+            if (!normals.empty()) {
+                // As the constructor: missing or broken vertex normals fall back to the face normal.
+                const Vec3 nv = normals[3 * i + k];
+                const float nl = glm::length(nv);
+                mesh_.normals[v] = nl > 0.f && std::isfinite(nl) ? nv / nl : c / len;
+            }
+        }
+        classify_triangle(t);
+        ++i;
+    }
+    rtcUpdateGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0);
+    rtcCommitGeometry(geom);
+    rtcCommitScene(static_cast<RTCScene>(rtc_scene_));
+    // The device's error callback writes to a string of the thread that built the scene; ask the device itself.
+    if (const RTCError e = rtcGetDeviceError(static_cast<RTCDevice>(rtc_device_)); e != RTC_ERROR_NONE)
+        throw RuntimeFailure(fmt::format("{}: Embree error {} while rebuilding the BVH", what, int(e)));
+    compute_bounds();
+    build_lights();  // emitter corners, areas and the power distribution; the environment's share depends on the bounds
 }
 
 void Scene::build_on_shared(std::shared_ptr<SharedGeometry> shared, const std::string& origin) {

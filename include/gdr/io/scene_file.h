@@ -50,6 +50,8 @@ struct MeshStats {
     size_t degenerate_skipped = 0;  ///< Of those, zero-area triangles the Scene dropped.
 };
 
+struct SceneEditState;
+
 /// A loaded scene file.
 struct SceneFile {
     std::unique_ptr<Scene> scene;  ///< The scene, ready to render.
@@ -71,6 +73,11 @@ struct SceneFile {
     std::shared_ptr<AnimatedScene> animation;
     /// The frame `scene` shows (animation->range().first after loading); 0 for a still scene.
     int frame = 0;
+    /// What edit_material, edit_mesh_transform and edit_environment need (the
+    /// meshes' untransformed vertices, the materials' descriptions before the
+    /// scene file's overrides): kept for a still JSON scene loaded with
+    /// `editable`, else null.
+    std::shared_ptr<SceneEditState> edit;
 };
 
 /// Options of load_scene_file that only Mitsuba XML scenes take.
@@ -81,6 +88,13 @@ struct SceneFileOptions {
     /// Unsupported elements become one warning each and are skipped (or
     /// replaced, as the warning says) instead of an error.
     bool lenient = false;
+    /// Keep what editing the loaded scene in place needs (SceneFile::edit):
+    /// a copy of the meshes' untransformed vertices, normals and uvs.
+    bool editable = false;
+    /// A Mitsuba XML scene's text, read in place of the file `path` names (which
+    /// then need not exist; relative paths are still resolved from its
+    /// directory, and content_hash covers the text): a scene made in memory.
+    std::string text;
 };
 
 /// Loads a scene file: Mitsuba XML (a name ending in .xml, or text starting
@@ -101,7 +115,42 @@ SceneFile load_scene_file(const std::string& path);
 /// "material": NAME, "transform": {...}}, where the `materials` entry NAME
 /// defines the material ("type" and its values over MTL defaults); its faces
 /// are flat. content_hash covers the text and every file it names.
-SceneFile load_scene_text(const std::string& text, const std::string& name);
+SceneFile load_scene_text(const std::string& text, const std::string& name, bool editable = false);
+
+/// The content_hash load_scene_text(text, name) gives a scene that read the
+/// files `inputs` (as the loaded SceneFile::inputs), without loading it: the
+/// hash of a scene edited in place is that of the edited description.
+std::string scene_text_hash(const std::string& text, const std::string& name, const std::vector<std::string>& inputs);
+
+/// Replaces the scene-file values of material `name` (the scene file's
+/// materials.NAME, a JSON object given as text, e.g. {"type": "plastic",
+/// "kd": [0.5, 0.5, 0.5], "alpha": 0.1}) and rebuilds, in place, the BSDF and
+/// emitted radiance of every material of that name as loading would have
+/// (see Scene::set_material: light distribution refreshed where the emission
+/// changes; a map_kd image is read again). Needs an editable still scene (ParameterError otherwise);
+/// InputError naming materials.NAME.KEY for a bad value.
+void edit_material(SceneFile& sf, const std::string& name, const std::string& fields_json);
+
+/// The description material `name` would be built from with the scene-file
+/// values `fields_json` (as edit_material takes them): its MTL values with
+/// those over them (colours unitless or W/(m^2 sr), pr the GGX alpha or
+/// negative, ns the Phong exponent, ni the index of refraction); e.g. to list
+/// the values a material has without the scene file giving them. Errors as edit_material's.
+MaterialDesc material_description(SceneFile& sf, const std::string& name, const std::string& fields_json);
+
+/// Sets mesh entry `index`'s transform (the scene file's meshes[i].transform,
+/// JSON text; "null" for none) and moves its triangles in place from their
+/// untransformed vertices, as loading would place them (Scene::set_object_geometry
+/// rebuilds the BVH and the light distribution). ParameterError for a scene
+/// that is not editable, an index out of range, or a transform that makes a
+/// different set of its triangles zero-area than the current one (loading
+/// drops those); InputError naming meshes[i].transform for a malformed one.
+void edit_mesh_transform(SceneFile& sf, size_t index, const std::string& transform_json);
+
+/// Replaces the environment (the scene file's environment, JSON text; "null"
+/// removes it) and with it the light-selection distribution. An envmap's
+/// image is read again.
+void edit_environment(SceneFile& sf, const std::string& environment_json);
 /// The folder of the larger public scenes (the bathroom, the Mitsuba test
 /// scenes), which a JSON scene file names as "$GDR_SCENES/...": the environment
 /// variable GDR_SCENES where it is set and not empty, else the build's CMake

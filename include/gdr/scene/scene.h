@@ -336,12 +336,38 @@ public:
     /// loading); the geometry does not depend on it. Not synchronised: set it
     /// only while no render runs.
     void set_camera(const Camera& camera) { camera_ = camera; }
+    /// Replaces material `index`'s BSDF and emitted radiance (W/(m^2 sr),
+    /// front side) in place, for editing a loaded scene: the cached BSDF
+    /// flags are refreshed and, where the radiance changed, the light-selection
+    /// distribution (power per emitting triangle) is rebuilt; geometry and BVH
+    /// stay. ParameterError for an index out of range, a null BSDF, or a
+    /// negative or non-finite radiance. Not synchronised: only while no render runs.
+    void set_material(size_t index, std::shared_ptr<Bsdf> bsdf, const Color& emission);
+    /// Number of triangles (after loading dropped zero-area ones) of object
+    /// `object_id`, the scene-file mesh entry (see object_id()).
+    size_t object_triangles(uint32_t object_id) const;
+    /// Moves object `object_id`'s triangles in place: `positions` are their new
+    /// world-space corners (scene units, 3 per triangle, in the scene's order
+    /// of that object's triangles) and `normals` their vertex normals (any
+    /// length; a zero or non-finite one falls back to the face normal, as at
+    /// load), empty exactly when the scene has none. The triangles' vertices
+    /// in the Embree geometry are updated and the BVH rebuilt (the scene is one
+    /// Embree geometry, so its whole BVH: a rebuild, not a refit, so that the
+    /// result is the BVH a fresh load builds), and the scene bounds and
+    /// emitter areas (light distribution) recomputed. ParameterError for a
+    /// count mismatch, a non-finite, out-of-range or zero-area triangle, or a
+    /// scene built on shared geometry. Not synchronised: only while no render runs.
+    void set_object_geometry(uint32_t object_id, const std::vector<Vec3>& positions, const std::vector<Vec3>& normals);
     /// Installs an observer of every traced ray (nullptr removes it). Not
     /// synchronised: set it only while no render runs. Costs one branch per ray.
     void set_ray_observer(RayObserver* observer) { observer_ = observer; }
 
 private:
     void build_lights();
+    // hit_info_'s kSmooth and kHasUv bits and flat_frames_ of triangle t, from mesh_.
+    void classify_triangle(size_t t);
+    // center_ and radius_ from mesh_'s positions.
+    void compute_bounds();
     // visible() once its ends are offset: o = offset_ray_origin(p0, n0, p1 -
     // p0) and v = offset_ray_origin(p1, n1, p0 - p1) - o.
     bool segment_clear(const Vec3& o, const Vec3& v) const;
