@@ -20,7 +20,6 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
-#include <dlfcn.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -750,29 +749,8 @@ std::string load_plugin_file(const fs::path& file) {
     }
     // As the gdr tool: libtorch's OpenMP threads must not spin between parallel regions.
     setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
-    // RTLD_LOCAL: the plugin's own copy of libgdr must not take the place of this module's symbols.
-    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (!handle) {
-        const char* e = dlerror();
-        throw gdr::InputError("load_plugin: " + path + ": " + (e ? e : "dlopen failed"));
-    }
-    using AbiFn = const char* (*)();
-    using AddFn = void (*)(gdr::PluginRegistries*);
-    const auto abi = reinterpret_cast<AbiFn>(dlsym(handle, "gdr_plugin_abi"));
-    const auto add = reinterpret_cast<AddFn>(dlsym(handle, "gdr_plugin_register"));
-    if (!abi || !add) {
-        dlclose(handle);
-        throw gdr::InputError("load_plugin: " + path + " exports no gdr_plugin_abi / gdr_plugin_register: "
-                              "not a gdr plugin");
-    }
-    if (std::string(abi()) != GDR_PLUGIN_ABI) {
-        const std::string theirs = abi();
-        dlclose(handle);
-        throw gdr::InputError("load_plugin: " + path + " was built for " + theirs + ", this module is " + GDR_PLUGIN_ABI +
-                              " (build and install the two together)");
-    }
-    gdr::PluginRegistries regs{&gdr::integrator_registry(), &gdr::reconstructor_registry(), &gdr::shift_registry()};
-    add(&regs);  // never unloaded: the registries hold its factories
+    const std::string why = gdr::load_plugin(path);  // never unloaded: the registries hold its factories
+    if (!why.empty()) throw gdr::InputError("load_plugin: " + path + ": " + why);
     g_plugins[path] = true;
     return path;
 }

@@ -1,8 +1,6 @@
 // Loading the gdr tool's plugins (gdr/cli/plugins.h).
 #include "gdr/cli/plugins.h"
 
-#include <dlfcn.h>
-
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
@@ -19,62 +17,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Loads plugin `file` into `regs`; "" if it registered, else why not.
-std::string load_one(const std::string& file, PluginRegistries& regs) {
-    // RTLD_LOCAL: the plugin's own copy of libgdr must not take the place
-    // of the tool's symbols, nor theirs its own.
-    void* handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
-    if (!handle) {
-        const char* e = dlerror();
-        return e ? e : "dlopen failed";
-    }
-    const auto abi = reinterpret_cast<decltype(&gdr_plugin_abi)>(dlsym(handle, "gdr_plugin_abi"));
-    const auto add = reinterpret_cast<decltype(&gdr_plugin_register)>(dlsym(handle, "gdr_plugin_register"));
-    if (!abi || !add) {
-        dlclose(handle);
-        return "it exports no gdr_plugin_abi / gdr_plugin_register: not a gdr plugin";
-    }
-    if (std::strcmp(abi(), GDR_PLUGIN_ABI) != 0) {
-        const std::string why = std::string("it was built for ") + abi() + ", this gdr is " + GDR_PLUGIN_ABI +
-                                " (build and install the two together)";
-        dlclose(handle);
-        return why;
-    }
-    try {
-        add(&regs);
-    } catch (const std::exception& e) {
-        // What it registered before failing stays: the library stays loaded.
-        return std::string("its registration failed: ") + e.what();
-    }
-    return "";
-}
-
 PluginLoad load_once() {
-    PluginLoad r;
-    r.searched = plugin_search_dirs();
     // libtorch's OpenMP threads spin after each parallel region by
     // default, taking CPU from the tool's own threads (the EXR write after
     // the inference): gdr reconstruct --method neural of a 1280x720 render
     // took 4.5-4.9 s of user CPU (6.2-6.9 s wall) without it and 3.5-3.8 s
     // (5.2-5.8 s wall) with PASSIVE. OpenMP reads the variable when it is
-    // loaded, with the neural plugin; a value the user set is kept.
+    // loaded, with the neural plugin; a value the user set is kept. The tool
+    // sets it, not the library: the process's environment is the program's.
     setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
-    PluginRegistries regs{&integrator_registry(), &reconstructor_registry(), &shift_registry()};
-    // A later registration of a name replaces an earlier one, so the
-    // directories are loaded last to first: the earlier directory wins.
-    for (auto dir = r.searched.rbegin(); dir != r.searched.rend(); ++dir) {
-        std::error_code ec;
-        std::vector<std::string> files;
-        for (fs::directory_iterator it(*dir, ec), end; !ec && it != end; it.increment(ec))
-            if (it->path().extension() == ".so" && fs::is_regular_file(it->path(), ec)) files.push_back(it->path().string());
-        std::sort(files.begin(), files.end());
-        for (const std::string& file : files) {
-            const std::string why = load_one(file, regs);
-            if (why.empty()) r.loaded.push_back(file);
-            else r.skipped.emplace_back(file, why);
-        }
-    }
-    return r;
+    return load_plugins_from(plugin_search_dirs());
 }
 
 std::string joined(const std::vector<std::string>& v) {

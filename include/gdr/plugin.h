@@ -19,6 +19,10 @@
 // uses a plugin only if its identity equals the tool's.
 #pragma once
 
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "gdr/integrators/integrator.h"
 #include "gdr/reconstruct/reconstructor.h"
 #include "gdr/registry.h"
@@ -32,6 +36,30 @@ struct PluginRegistries {
     Registry<Reconstructor>* reconstructors = nullptr;  ///< reconstructor_registry()
     Registry<Shift>* shifts = nullptr;                  ///< shift_registry()
 };
+
+/// This build's identity (gdr version, compiler and its version, C++
+/// standard): a plugin is used only if its gdr_plugin_abi() returns the same.
+const char* plugin_abi();
+
+/// Loads plugin library `file` with dlopen and registers what it adds into
+/// the process-wide registries. Returns "" if it registered, else why it was
+/// not used (dlopen's error, not a gdr plugin, built for another identity,
+/// its registration threw: what it registered before stays). Never throws.
+/// A loaded plugin is never unloaded (the registries hold its factories);
+/// loading a file twice registers it twice, so callers keep track.
+std::string load_plugin(const std::string& file);
+
+/// What load_plugins_from() found.
+struct PluginLoad {
+    std::vector<std::string> loaded;                            ///< Plugin files loaded and registered.
+    std::vector<std::pair<std::string, std::string>> skipped;  ///< Files not used, each with why.
+    std::vector<std::string> searched;                          ///< The directories searched.
+};
+
+/// Loads every NAME.so in `dirs` (in file-name order within a directory)
+/// with load_plugin(); where two plugins register one name, the one of the
+/// earlier directory wins. A missing directory is skipped. Never throws.
+PluginLoad load_plugins_from(const std::vector<std::string>& dirs);
 
 }  // namespace gdr
 

@@ -36,11 +36,7 @@ inline constexpr const char* kNeuralPluginFile = "libgdr_neural_plugin.so";
 std::vector<std::string> plugin_search_dirs();
 
 /// What load_plugins() found.
-struct PluginLoad {
-    std::vector<std::string> loaded;                            ///< Plugin files loaded and registered.
-    std::vector<std::pair<std::string, std::string>> skipped;  ///< Files not used, each with why.
-    std::vector<std::string> searched;                          ///< The directories searched.
-};
+using PluginLoad = gdr::PluginLoad;
 
 /// Loads every plugin of the search directories and registers what they
 /// add into the process-wide registries. Runs once per process (later calls
