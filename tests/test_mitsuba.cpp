@@ -310,6 +310,18 @@ TEST_CASE("mitsuba: plastic and roughplastic are diffuse + GGX with the coating'
     CHECK(bsdf_of(n).min_roughness() < 0.05f);
 }
 
+TEST_CASE("mitsuba: a perfect-mirror conductor loads in any outer medium, a named metal only in vacuum", "[mitsuba]") {
+    // material "none" reflects everything whatever ext_eta is (the shared box's
+    // mirrors name extEta "air"); a tabulated metal's reflectance is for vacuum.
+    Xml x;
+    const SceneFile m = x.load(rect(R"(<bsdf type="conductor"><string name="material" value="none"/>
+        <string name="ext_eta" value="air"/></bsdf>)"));
+    CHECK(bsdf_of(m).is_pure_delta());
+    CHECK_THAT(x.error(rect(R"(<bsdf type="conductor"><string name="material" value="Cu"/>
+        <string name="ext_eta" value="air"/></bsdf>)")),
+               Catch::Contains("medium other than vacuum"));
+}
+
 TEST_CASE("mitsuba: a 0.x bitmap opacity is its colour, a 3.x one its alpha channel", "[mitsuba]") {
     // Mitsuba 0.6 drops a bitmap's alpha: a white texel of alpha 0 (a cut-out
     // leaf's background) is opaque there; Mitsuba 3 reads the alpha.
