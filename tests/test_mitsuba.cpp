@@ -13,6 +13,7 @@
 #include <string>
 
 #include <fmt/core.h>
+#include <stb/stb_image_write.h>
 
 #include "block_stats.h"
 #include "cli_test_util.h"
@@ -307,6 +308,35 @@ TEST_CASE("mitsuba: plastic and roughplastic are diffuse + GGX with the coating'
     const SceneFile n = x.load(rect(R"(<bsdf type="plastic"><boolean name="nonlinear" value="true"/></bsdf>)"));
     CHECK(bsdf_of(n).albedo(Vec2(0.f)).r < a.r);
     CHECK(bsdf_of(n).min_roughness() < 0.05f);
+}
+
+TEST_CASE("mitsuba: a perfect-mirror conductor loads in any outer medium, a named metal only in vacuum", "[mitsuba]") {
+    // material "none" reflects everything whatever ext_eta is (the shared box's
+    // mirrors name extEta "air"); a tabulated metal's reflectance is for vacuum.
+    Xml x;
+    const SceneFile m = x.load(rect(R"(<bsdf type="conductor"><string name="material" value="none"/>
+        <string name="ext_eta" value="air"/></bsdf>)"));
+    CHECK(bsdf_of(m).is_pure_delta());
+    CHECK_THAT(x.error(rect(R"(<bsdf type="conductor"><string name="material" value="Cu"/>
+        <string name="ext_eta" value="air"/></bsdf>)")),
+               Catch::Contains("medium other than vacuum"));
+}
+
+TEST_CASE("mitsuba: a 0.x bitmap opacity is its colour, a 3.x one its alpha channel", "[mitsuba]") {
+    // Mitsuba 0.6 drops a bitmap's alpha: a white texel of alpha 0 (a cut-out
+    // leaf's background) is opaque there; Mitsuba 3 reads the alpha.
+    Xml x;
+    const unsigned char px[8] = {255, 255, 255, 0, 255, 255, 255, 0};
+    REQUIRE(stbi_write_png(x.dir("card.png").c_str(), 2, 1, 4, px, 8) != 0);
+    const std::string body = R"(<shape type="rectangle"><bsdf type="mask"><texture name="opacity" type="bitmap">
+        <string name="filename" value="card.png"/></texture><bsdf type="diffuse"/></bsdf></shape>)";
+    for (const std::string version : {"0.6.0", "3.0.0"}) {
+        const SceneFile sf = load_scene_file(x.scene(body, true, version));
+        const auto& o = sf.scene->materials().at(0).opacity;
+        REQUIRE(o);
+        INFO("version " << version);
+        CHECK(luminance(o->eval(Vec2(0.25f, 0.5f))) == Approx(version == "0.6.0" ? 1.f : 0.f).margin(1e-3));
+    }
 }
 
 TEST_CASE("mitsuba: mask cuts holes where its opacity is 0 and passes 1 - opacity of the rays elsewhere", "[mitsuba]") {

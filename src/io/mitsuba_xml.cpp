@@ -113,41 +113,6 @@ std::string snake_case(const std::string& s) {
     return r;
 }
 
-/// The Fresnel reflectance of a smooth interface, eta = inside / outside,
-/// averaged over the cosine-weighted hemisphere of directions from inside:
-/// the fraction of diffuse light inside a coating that the interface returns.
-float internal_diffuse_fresnel(float eta) {
-    constexpr int n = 1000;
-    double sum = 0.0;
-    for (int i = 0; i < n; ++i) {
-        const float mu = (float(i) + 0.5f) / float(n);
-        sum += double(fresnel_dielectric(mu, 1.f / eta)) * mu;
-    }
-    return float(2.0 * sum / n);
-}
-
-/// The diffuse base of Mitsuba's plastic seen through its coating, at normal
-/// incidence: scale * kd / (1 - fdr * (nonlinear ? kd : 1)) per channel.
-class CoatedDiffuseTexture final : public Texture {
-public:
-    CoatedDiffuseTexture(std::shared_ptr<Texture> kd, float scale, float fdr, bool nonlinear)
-        : kd_(std::move(kd)), scale_(scale), fdr_(fdr), nonlinear_(nonlinear), mean_(map(kd_->mean())) {}
-    Color eval(const Vec2& uv) const override { return map(kd_->eval(uv)); }
-    Color mean() const override { return mean_; }
-    bool is_constant() const override { return kd_->is_constant(); }
-
-private:
-    Color map(const Color& kd) const {
-        Color r;
-        for (int i = 0; i < 3; ++i) r[i] = scale_ * kd[i] / (1.f - fdr_ * (nonlinear_ ? kd[i] : 1.f));
-        return r;
-    }
-    std::shared_ptr<Texture> kd_;
-    float scale_, fdr_;
-    bool nonlinear_;
-    Color mean_;
-};
-
 /// One file of XML: the scene's or an included one.
 struct Doc {
     std::string file, dir;
@@ -804,7 +769,9 @@ Color Importer::conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spe
         std::string list;
         for (const NamedConductor& c : kConductors) list += (list.empty() ? "" : ", ") + std::string(c.name);
         fail(n, "unknown conductor material '" + material + "' (known: " + list + ")");
-    } else if (ext != 1.f) {
+    } else if (ext != 1.f && material != "none") {
+        // "none" is a perfect mirror in any medium; a named metal's tabulated
+        // reflectance is for vacuum only.
         unsupported(n, "a named conductor in a medium other than vacuum (ext_eta)", "ignores ext_eta");
     }
     if (spec_texture) {
@@ -994,11 +961,7 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         const bool nonlinear = get_bool(p, "nonlinear", false);
         const Color spec = get_colour(p, "specular_reflectance", Color(1.f));
         auto kd = get_texture(p, "diffuse_reflectance", Color(0.5f));
-        const float f0 = ((eta - 1.f) / (eta + 1.f)) * ((eta - 1.f) / (eta + 1.f));
-        const float fdr = internal_diffuse_fresnel(eta);
-        auto coated = std::make_shared<CoatedDiffuseTexture>(std::move(kd), (1.f - f0) * (1.f - f0) / (eta * eta), fdr,
-                                                             nonlinear);
-        b->bsdf = make_plastic(std::move(coated), glm::clamp(spec * f0, Color(0.f), Color(1.f)), alpha, md);
+        b->bsdf = make_coated_plastic(std::move(kd), glm::clamp(spec, Color(0.f), Color(1.f)), eta, alpha, md, nonlinear);
     } else if (type == "phong") {
         b->bsdf = build_phong(p);
     } else if (type == "ward") {
@@ -1142,7 +1105,12 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
         return make_constant_texture(Color(opacity ? 1.f : 0.5f));
     }
     try {
-        t = opacity ? load_opacity_texture(file, io) : load_image_texture(file, io);
+        // Mitsuba 0.x's bitmap drops an image's alpha channel and gives its
+        // colour to whatever reads it, a mask's opacity too: a cut-out leaf
+        // stored as green on a transparent white card is, there, a mostly
+        // opaque white card (the shared living room's plants). Mitsuba's
+        // opacity is per channel; gdr's is one number, the colour's luminance.
+        t = opacity ? load_opacity_texture(file, io, version_major_ >= 2) : load_image_texture(file, io);
     } catch (const InputError& e) {
         fail(n, e.what());
     }

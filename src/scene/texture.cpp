@@ -204,9 +204,10 @@ std::shared_ptr<Texture> load_image_texture(const std::string& path, const Image
     return std::make_shared<ImageTexture>(std::move(img), options.scale, options.wrap, options.nearest);
 }
 
-std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options) {
+std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options,
+                                              bool use_alpha) {
     const Pixels p = read_pixels(path, 4);
-    const bool alpha = p.file_channels == 2 || p.file_channels == 4;
+    const bool alpha = use_alpha && (p.file_channels == 2 || p.file_channels == 4);
     Image img(p.w, p.h, 3);
     float* dst = img.data();
     for (size_t i = 0, n = size_t(p.w) * p.h; i < n; ++i) {

@@ -150,6 +150,15 @@ std::shared_ptr<Bsdf> make_rough_dielectric(float eta, float alpha, std::shared_
 /// lobe of `type` (GGX by default) of reflectance ks, scaled so that kd + ks <= 1 per channel.
 std::shared_ptr<Bsdf> make_plastic(std::shared_ptr<Texture> kd, const Color& ks, float alpha,
                                    MicrofacetType type = MicrofacetType::GGX);
+/// A diffuse base kd under a dielectric coating of relative IOR eta (inside /
+/// outside) and roughness alpha, as Mitsuba's `plastic` / `roughplastic`:
+/// the coating reflects ks F(wo.h) D G2 / (4 cos_o cos_i) (exact dielectric
+/// Fresnel, so far more at grazing angles), and the base is seen through it
+/// as kd' T(cos_o) T(cos_i) / (eta^2 pi), with T the coating's transmittance
+/// and kd' = kd / (1 - Fdr) (nonlinear: kd / (1 - Fdr kd)), Fdr the coating's
+/// reflectance of diffuse light from inside; two-sided (unitless colours).
+std::shared_ptr<Bsdf> make_coated_plastic(std::shared_ptr<Texture> kd, const Color& ks, float eta, float alpha,
+                                          MicrofacetType type = MicrofacetType::GGX, bool nonlinear = false);
 
 /// Modified Phong reflection as Mitsuba's `phong` (Lafortune and Willems
 /// 1994): f = kd / pi + ks (n + 2) / (2 pi) max(0, wi . reflect(wo))^n, two-sided,

@@ -56,9 +56,11 @@ struct ImageTextureOptions {
 std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options);
 
 /// The opacity of an image as a grey texture (unitless in [0, 1]): its alpha
-/// channel, as stored, where the file has one, else the luminance of its
-/// (decoded) colour, times options.scale. Throws InputError as load_image_texture.
-std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options);
+/// channel, as stored, where the file has one and `use_alpha` is set, else the
+/// luminance of its (decoded) colour, times options.scale. Throws InputError
+/// as load_image_texture.
+std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options,
+                                              bool use_alpha = true);
 
 /// A checkerboard of period 1 in (u', v') = (m * (u, v, 1)).xy: c0 where the
 /// fractional parts of u' and v' are both above 1/2 or both at most 1/2, c1
