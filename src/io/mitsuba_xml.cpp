@@ -726,25 +726,26 @@ Mat4 Importer::transform_of(xml_node t, bool* nine) {
             const auto vec = [&](const char* a, bool need) {
                 if (!c.attribute(a)) {
                     if (need) fail(c, std::string("missing attribute '") + a + "'");
-                    return Vec3(0.f, 1.f, 0.f);
+                    return glm::dvec3(0.0, 1.0, 0.0);
                 }
                 const auto v = numbers(c, attr(c, a), std::string("'") + a + "'");
                 if (v.size() != 3) fail(c, std::string("'") + a + "' must hold 3 numbers");
-                return Vec3(float(v[0]), float(v[1]), float(v[2]));
+                return glm::dvec3(v[0], v[1], v[2]);
             };
-            const Vec3 o = vec("origin", true), target = vec("target", true), up = vec("up", false);
+            // In double precision: a randomised camera may give an up vector
+            // within 1e-7 of the viewing axis whose small remainder still
+            // decides the roll (as it does in Mitsuba's own cross product).
+            const glm::dvec3 o = vec("origin", true), target = vec("target", true), up = vec("up", false);
             // Farther, |target - origin| overflows and the message below would blame the up vector.
-            for (const auto& [a, v] : {std::pair<const char*, Vec3>{"origin", o}, {"target", target}})
-                if (!within_coordinate_range(v))
+            for (const auto& [a, v] : {std::pair<const char*, glm::dvec3>{"origin", o}, {"target", target}})
+                if (!within_coordinate_range(Vec3(v)))
                     fail(c, fmt::format("'{}' ({}, {}, {}) is beyond +-{:g} on an axis", a, v.x, v.y, v.z, kMaxCoordinate));
-            const Vec3 d = target - o;
-            if (!(glm::length(d) > 0.f)) fail(c, "origin and target coincide");
-            const Vec3 dir = glm::normalize(d);
-            const Vec3 l = glm::cross(up, dir);
-            if (!(glm::length(l) > 1e-6f)) fail(c, "up is parallel to the viewing direction");
-            const Vec3 left = glm::normalize(l);
-            const Vec3 new_up = glm::cross(dir, left);
-            op = Mat4(Vec4(left, 0.f), Vec4(new_up, 0.f), Vec4(dir, 0.f), Vec4(o, 1.f));
+            if (!(glm::length(target - o) > 0.0)) fail(c, "origin and target coincide");
+            const glm::dvec3 dir = glm::normalize(target - o);
+            const glm::dvec3 l = glm::cross(up, dir);
+            if (!(glm::length(l) > 1e-12 * glm::length(up))) fail(c, "up is parallel to the viewing direction");
+            const glm::dvec3 left = glm::normalize(l), new_up = glm::cross(dir, left);
+            op = Mat4(Vec4(Vec3(left), 0.f), Vec4(Vec3(new_up), 0.f), Vec4(Vec3(dir), 0.f), Vec4(Vec3(o), 1.f));
         } else {
             fail(c, "unknown transform operation <" + tag + "> (expected translate, rotate, scale, matrix, lookat)");
         }
@@ -802,8 +803,13 @@ Color Importer::conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spe
         std::string list;
         for (const NamedConductor& c : kConductors) list += (list.empty() ? "" : ", ") + std::string(c.name);
         fail(n, "unknown conductor material '" + material + "' (known: " + list + ")");
-    } else if (ext != 1.f) {
-        unsupported(n, "a named conductor in a medium other than vacuum (ext_eta)", "ignores ext_eta");
+    } else if (ext != 1.f && material != "none") {
+        // Only F0 in vacuum is tabulated here, not the metal's eta and k that
+        // ext_eta divides. 'none' (eta 0, k 1) reflects everything in any
+        // medium, since Fresnel's conductor reflectance is 1 at eta 0 for every
+        // k and angle, so it needs no table.
+        unsupported(n, "a named conductor other than 'none' in a medium other than vacuum (ext_eta; give eta and k instead)",
+                    "ignores ext_eta");
     }
     if (spec_texture) {
         // A texture (or colour) multiplying the reflectance per uv.
