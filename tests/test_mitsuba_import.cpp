@@ -3,13 +3,15 @@
 // that drops every shape or every emitter is an error in both modes, a file
 // named in another case is found, the scene's integrator keeps its path
 // length and notes the rest; cylinders, shapegroups and instances; and every
-// shared Mitsuba scene loads (or names what it lacks) and renders without NaN.
+// shared Mitsuba scene and randomised variant loads strictly unless it lacks
+// a file of its source or uses `coating`, and renders without NaN.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <fmt/core.h>
@@ -214,58 +216,87 @@ TEST_CASE("mitsuba import: a shapegroup renders where its instances place it", "
                Catch::Contains("not a <shape type=\"shapegroup\">"));
 }
 
-TEST_CASE("mitsuba import: every shared Mitsuba scene loads or names what it lacks, and renders without NaN",
+TEST_CASE("mitsuba import: every shared Mitsuba scene and variant whose files are complete loads strictly and renders "
+          "without NaN",
           "[mitsuba][shared]") {
     namespace fs = std::filesystem;
     GDR_PUBLIC_SCENE_OR_SKIP(kSharedMitsuba, "mitsuba");
-    std::vector<fs::path> scenes;
-    for (const auto& d : fs::directory_iterator(kSharedMitsuba))
-        if (fs::exists(d.path() / "scene.xml")) scenes.push_back(d.path() / "scene.xml");
-    // The Cornell box with caustic objects has only variants: the first (which has a Mitsuba reference render).
-    if (fs::exists(kSharedMitsuba + "/cbox-caustics/cbox-caustics_rand_scene0.xml"))
-        scenes.push_back(kSharedMitsuba + "/cbox-caustics/cbox-caustics_rand_scene0.xml");
-    std::sort(scenes.begin(), scenes.end());
-    REQUIRE(!scenes.empty());
-    std::string table;
-    for (const fs::path& path : scenes) {
-        const std::string name = path.parent_path().filename().string();
-        INFO(name);
-        std::string strict = "loads strictly";
-        SceneFileOptions o;
-        try {
-            load_mitsuba_scene(path.string(), o);
-        } catch (const InputError& e) {
-            // Not loading strictly is fine only when the report names what is
-            // unsupported or missing; the two scenes of only supported
-            // elements must load.
-            strict = e.what();
-            CHECK_THAT(strict, Catch::Contains("--lenient") || Catch::Contains("every emitter was dropped"));
-            CHECK(name != "living-room");
-            CHECK(name != "veach-bidir");
+    // Every scene.xml and every randomised variant (*_rand_scene*.xml) of every folder.
+    std::vector<fs::path> files;
+    for (const auto& d : fs::directory_iterator(kSharedMitsuba)) {
+        if (!d.is_directory()) continue;
+        for (const auto& f : fs::directory_iterator(d.path())) {
+            const std::string name = f.path().filename().string();
+            if (name == "scene.xml" || (name.find("_rand_scene") != std::string::npos && f.path().extension() == ".xml"))
+                files.push_back(f.path());
         }
-        o.lenient = true;
-        std::string lenient = "renders";
-        try {
-            SceneFile sf = load_mitsuba_scene(path.string(), o);
-            set_resolution(sf, 16, 9);
-            Params p;
-            p.set("max_depth", 6LL);
-            auto integ = integrator_registry().create("pt", p);
-            RenderSettings st;
-            st.spp = 2;
-            FrameBuffer fb;
-            const RenderStats rs = integ->render(*sf.scene, st, fb);
-            CHECK(rs.nonfinite == 0);
-            for (float v : fb.get("color").values()) REQUIRE(std::isfinite(v));
-            lenient = fmt::format("renders with {} warning(s)", sf.warnings.size());
-        } catch (const InputError& e) {
-            // Only a scene whose every light is unsupported may fail with --lenient.
-            lenient = e.what();
-            CHECK_THAT(lenient, Catch::Contains("every emitter was dropped"));
-        }
-        table += fmt::format("\n== {}\nstrict: {}\nlenient: {}", name, strict, lenient.substr(0, 300));
     }
-    WARN("status of the shared Mitsuba scenes:" << table);
+    std::sort(files.begin(), files.end());
+    REQUIRE(files.size() >= 11);
+    // With --lenient, what a strict load rejects becomes a warning ending in
+    // "(--lenient)". The only ones allowed: files missing from the scenes'
+    // source, and `coating`, which gdr does not model (docs/scenes.md).
+    const auto lenient_only = [](const SceneFile& sf) {
+        std::vector<std::string> w;
+        for (const std::string& s : sf.warnings)
+            if (s.find("(--lenient)") != std::string::npos) w.push_back(s);
+        return w;
+    };
+    size_t strict = 0, missing = 0, coating = 0;
+    std::set<std::string> strict_scenes;
+    for (const fs::path& path : files) {
+        const std::string rel = path.parent_path().filename().string() + "/" + path.filename().string();
+        INFO(rel);
+        SceneFileOptions o;
+        o.lenient = true;
+        SceneFile sf = load_mitsuba_scene(path.string(), o);
+        const std::vector<std::string> dropped = lenient_only(sf);
+        bool lacks_file = false, has_coating = false;
+        for (const std::string& w : dropped) {
+            INFO(w);
+            const bool file = w.find("file not found") != std::string::npos;
+            const bool coat = w.find("unsupported BSDF type 'coating'") != std::string::npos;
+            CHECK((file || coat));
+            lacks_file |= file;
+            has_coating |= coat;
+        }
+        strict += dropped.empty();
+        if (dropped.empty() && path.filename() == "scene.xml") strict_scenes.insert(path.parent_path().filename().string());
+        missing += lacks_file;
+        coating += has_coating;
+        // The scenes themselves: the strict load agrees with the lenient one's
+        // warnings, and a failure names the file and line.
+        if (path.filename() == "scene.xml") {
+            SceneFileOptions so;
+            if (dropped.empty()) {
+                CHECK_NOTHROW(load_mitsuba_scene(path.string(), so));
+            } else {
+                CHECK_THROWS_WITH(load_mitsuba_scene(path.string(), so),
+                                  Catch::Contains(path.string() + ":") && Catch::Contains("file not found"));
+            }
+        }
+        set_resolution(sf, 16, 12);
+        Params p;
+        p.set("max_depth", 6LL);
+        auto integ = integrator_registry().create("pt", p);
+        RenderSettings st;
+        st.spp = 1;
+        FrameBuffer fb;
+        const RenderStats rs = integ->render(*sf.scene, st, fb);
+        CHECK(rs.nonfinite == 0);
+        bool finite = true;
+        for (float v : fb.get("color").values()) finite &= std::isfinite(v);
+        CHECK(finite);
+    }
+    // Of the eleven scenes, all but the two with meshes missing from their
+    // source (spaceship, water) load strictly.
+    for (const char* name : {"box", "classroom", "dining-room", "living-room", "sponza", "torus", "veach-bidir",
+                             "veach-lamp"}) {
+        INFO(name);
+        if (fs::exists(kSharedMitsuba + "/" + name + "/scene.xml")) CHECK(strict_scenes.count(name) == 1);
+    }
+    WARN(fmt::format("shared Mitsuba scenes: {} files, {} load strictly, {} lack a file of the source, {} use coating",
+                     files.size(), strict, missing, coating));
 }
 
 TEST_CASE("mitsuba import: a mirroring sensor to_world shows the world mirrored", "[mitsuba]") {
