@@ -20,7 +20,9 @@
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
+#include "gdr/io/exr.h"
 #include "gdr/io/mitsuba_xml.h"
+#include "gdr/io/png.h"
 #include "public_scenes.h"
 
 using namespace gdr;
@@ -297,6 +299,77 @@ TEST_CASE("mitsuba import: every shared Mitsuba scene and variant whose files ar
     }
     WARN(fmt::format("shared Mitsuba scenes: {} files, {} load strictly, {} lack a file of the source, {} use coating",
                      files.size(), strict, missing, coating));
+}
+
+TEST_CASE("mitsuba import: an envmap reads Radiance .hdr as linear and 8-bit files by their gamma", "[mitsuba][environment]") {
+    XmlScene s;
+    // A uniform 8 x 4 Radiance file of (0.5, 0.25, 1): RGBE bytes (64, 32, 128, 129), flat (unencoded) scanlines.
+    {
+        std::ofstream f(s.dir("sky.hdr"), std::ios::binary);
+        f << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n";
+        for (int i = 0; i < 32; ++i) f << char(64) << char(32) << char(128) << char(129);
+    }
+    // A uniform 8-bit PNG of the sRGB encoding of linear (0.2, 0.5, 0.8).
+    Image png(8, 4, 3);
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 8; ++x) png.set_rgb(x, y, Color(0.2f, 0.5f, 0.8f));
+    write_png_preview(s.dir("sky.png"), png);
+    const std::vector<uint8_t> b = preview_bytes(png);
+    const auto env = [&](const std::string& file, const std::string& extra) {
+        const SceneFile sf = s.load(R"(<shape type="rectangle"/><emitter type="envmap"><string name="filename" value=")" + file +
+                                    R"("/><float name="scale" value="2"/>)" + extra + "</emitter>");
+        REQUIRE(sf.scene->environment());
+        return sf.scene->environment()->eval(glm::normalize(Vec3(0.3f, 0.5f, -0.8f)));
+    };
+    CHECK(env("sky.hdr", "") == Color(1.f, 0.5f, 2.f));
+    // 8-bit: sRGB by default (as Mitsuba), linear with gamma 1, a power law otherwise.
+    for (int k = 0; k < 3; ++k) {
+        CAPTURE(k);
+        const float v = float(b[size_t(k)]) / 255.f;
+        CHECK(env("sky.png", "")[k] == Approx(2.f * srgb_to_linear(v)).epsilon(1e-5));
+        CHECK(env("sky.png", R"(<float name="gamma" value="1"/>)")[k] == Approx(2.f * v).epsilon(1e-5));
+        CHECK(env("sky.png", R"(<float name="gamma" value="2.2"/>)")[k] == Approx(2.f * std::pow(v, 2.2f)).epsilon(1e-5));
+    }
+    CHECK(env("sky.png", "")[1] == Approx(1.f).epsilon(0.02));  // the decoded PNG is the linear 0.5 it encodes, times 2
+    CHECK_THAT(s.error(R"(<shape type="rectangle"/><emitter type="envmap"><string name="filename" value="sky.png"/>
+                          <float name="gamma" value="0"/></emitter>)"),
+               Catch::Contains("scene.xml:7") && Catch::Contains("gamma must be positive"));
+}
+
+TEST_CASE("mitsuba import: an EXR bitmap is a linear texture oriented as an 8-bit one", "[mitsuba][texture]") {
+    XmlScene s;
+    // Four different texels; the PNG holds them as bytes read linearly (gamma 1), the EXR as those values.
+    Image img(2, 2, 3);
+    const Color c[4] = {Color(0.2f, 0.4f, 0.6f), Color(0.8f, 0.1f, 0.3f), Color(0.5f, 0.9f, 0.05f), Color(0.3f, 0.3f, 0.7f)};
+    for (int k = 0; k < 4; ++k) img.set_rgb(k % 2, k / 2, c[k]);
+    write_png_preview(s.dir("t.png"), img);
+    const std::vector<uint8_t> b = preview_bytes(img);
+    Image lin(2, 2, 3);
+    for (int k = 0; k < 4; ++k)
+        lin.set_rgb(k % 2, k / 2, Color(b[size_t(3 * k)], b[size_t(3 * k + 1)], b[size_t(3 * k + 2)]) / 255.f);
+    write_exr_image(s.dir("t.exr"), lin);
+    const auto kd = [&](const std::string& file, const std::string& extra, const Vec2& uv) {
+        const SceneFile sf = s.load(R"(<shape type="rectangle"><emitter type="area"/></shape><shape type="cube"><bsdf type="diffuse">
+            <texture type="bitmap" name="reflectance"><string name="filename" value=")" + file + R"("/>
+            <string name="filter_type" value="nearest"/>)" + extra + "</texture></bsdf></shape>");
+        const Material& m = sf.scene->materials().at(sf.scene->mesh().material_ids.back());
+        return m.bsdf->eval(Vec3(0.f, 0.f, 1.f), Vec3(0.f, 0.f, 1.f), uv) * kPi;
+    };
+    for (const Vec2 uv : {Vec2(0.25f, 0.25f), Vec2(0.75f, 0.25f), Vec2(0.25f, 0.75f), Vec2(0.75f, 0.75f)}) {
+        CAPTURE(uv.x, uv.y);
+        const Color e = kd("t.exr", "", uv), p = kd("t.png", R"(<float name="gamma" value="1"/>)", uv);
+        for (int k = 0; k < 3; ++k) CHECK(e[k] == Approx(p[k]).epsilon(1e-3));
+    }
+    // Mitsuba's uv (0.25, 0.25) is the image's top-left texel.
+    CHECK(kd("t.exr", "", Vec2(0.25f, 0.75f)).g == Approx(float(b[1]) / 255.f).epsilon(1e-3));
+    // Its gamma cannot apply to linear floats: a warning; an EXR opacity map is unsupported.
+    const SceneFile g = s.load(R"(<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">
+        <string name="filename" value="t.exr"/><float name="gamma" value="2.2"/></texture></bsdf><emitter type="area"/></shape>)");
+    CHECK(std::any_of(g.warnings.begin(), g.warnings.end(),
+                      [](const std::string& w) { return w.find("gamma 2.2 is ignored") != std::string::npos; }));
+    CHECK_THAT(s.error(R"(<shape type="rectangle"><bsdf type="mask"><texture type="bitmap" name="opacity">
+        <string name="filename" value="t.exr"/></texture><bsdf type="diffuse"/></bsdf><emitter type="area"/></shape>)"),
+               Catch::Contains("scene.xml:6") && Catch::Contains("EXR opacity map"));
 }
 
 TEST_CASE("mitsuba import: a mirroring sensor to_world shows the world mirrored", "[mitsuba]") {

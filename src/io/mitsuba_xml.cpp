@@ -33,6 +33,7 @@
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
 #include "gdr/scene/sky.h"
+#include "gdr/scene/texture.h"
 #include "mitsuba_shapes.h"
 #include "obj_lines.h"
 
@@ -1145,8 +1146,18 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
                 file + why + (opacity ? "; the surface is opaque (--lenient)" : "; it is mid-grey 0.5 (--lenient)"));
         return make_constant_texture(Color(opacity ? 1.f : 0.5f));
     }
+    std::string ext = fs::path(file).extension().string();
+    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext == ".exr" && opacity) {
+        unsupported(n, "an EXR opacity map (give an 8-bit image with alpha)", "makes the surface opaque");
+        return make_constant_texture(Color(1.f));
+    }
+    if (ext == ".exr" && gamma_given && gamma != 1.f)
+        warn(n, fmt::format("gamma {} is ignored: an EXR bitmap is read as linear values", gamma));
     try {
-        t = opacity ? load_opacity_texture(file, io) : load_image_texture(file, io);
+        // EXR holds linear floats, read by gdr's EXR reader (stb reads the rest).
+        if (ext == ".exr") t = make_image_texture(read_exr_rgb(file), io);
+        else t = opacity ? load_opacity_texture(file, io) : load_image_texture(file, io);
     } catch (const InputError& e) {
         fail(n, e.what());
     }
@@ -1845,16 +1856,31 @@ void Importer::emitter(xml_node n) {
             } else {
                 const std::string name = get_string(p, "filename", "");
                 if (name.empty()) fail(n, "an envmap needs a 'filename'");
+                const std::string file = file_path(n, name);
+                std::string ext = fs::path(file).extension().string();
+                for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+                // Mitsuba reads any bitmap: float files (EXR, Radiance .hdr)
+                // are linear; 8-bit ones sRGB unless `gamma` says otherwise
+                // (1 linear, -1 sRGB, else a power law), as for bitmap textures.
+                const bool exr = ext == ".exr";
                 bool gamma_given = false;
-                const float gamma = get_float(p, "gamma", 1.f, &gamma_given);
-                if (gamma_given && gamma != 1.f)
-                    warn(n, fmt::format("gamma {} is ignored: the map is read as linear radiance (an EXR)", gamma));
+                const float gamma = get_float(p, "gamma", -1.f, &gamma_given);
+                ImageTextureOptions io;
+                if (gamma_given && gamma == 1.f) {
+                    io.srgb = false;
+                } else if (gamma_given && gamma != -1.f) {
+                    if (!(gamma > 0.f) || !std::isfinite(gamma))
+                        fail(p.named.at("gamma"), "gamma must be positive, or -1 for sRGB");
+                    io.gamma = gamma;
+                }
+                if (exr && gamma_given && gamma != 1.f)
+                    warn(n, fmt::format("gamma {} is ignored: an EXR map is read as linear radiance", gamma));
                 ignore(p, {"cache", "filter_type", "mis_compensation"});
                 const Mat4 xf = get_transform(p, "to_world");
                 finish(p);
-                const std::string file = file_path(n, name);
                 inputs_.push_back(file);
-                environment_ = Environment::from_map(read_exr_rgb(file), glm::mat3(mirror_ * xf), scale, file);
+                environment_ = Environment::from_map(exr ? read_exr_rgb(file) : read_image_rgb(file, io),
+                                                     glm::mat3(mirror_ * xf), scale, file);
             }
         } catch (const InputError& e) {
             // Errors of the map or its values, placed at the element.
