@@ -156,6 +156,49 @@ TEST_CASE("mitsuba: rectangle, cube, sphere and disk are triangulated with outwa
     CHECK(bounds(*d.scene).second.x == Approx(1.f));
 }
 
+TEST_CASE("mitsuba: ext_eta on the named conductor 'none' keeps its perfect mirror; other names with ext_eta are errors",
+          "[mitsuba]") {
+    Xml x;
+    // The closed box's mirrors: Mitsuba 0.6's 'none' (eta 0, k 1) in air still reflects everything.
+    const std::string none = R"(<bsdf type="conductor" id="metal"><string name="material" value="none"/>
+        <string name="extEta" value="air"/><spectrum name="specularReflectance" value="1.0"/></bsdf>)";
+    const SceneFile sf = load_scene_file(x.write("none.xml", "<scene version=\"0.6.0\">" + kSensor + rect(none) + "</scene>"));
+    CHECK(delta_weight(bsdf_of(sf), 0.5f) == Color(1.f));
+    CHECK(sf.warnings.empty());
+    // eta and k with ext_eta: both are divided by it (glass-immersed gold is darker than in air).
+    const SceneFile ek = x.load(rect(R"(<bsdf type="conductor"><rgb name="eta" value="0.2, 0.9, 1.1"/>
+        <rgb name="k" value="3.9, 2.4, 2.1"/><float name="ext_eta" value="1.5"/></bsdf>)"));
+    const Color in_glass = delta_weight(bsdf_of(ek), 0.5f);
+    const float eta = 0.2f / 1.5f, k = 3.9f / 1.5f;
+    CHECK(in_glass.r == Approx(((eta - 1) * (eta - 1) + k * k) / ((eta + 1) * (eta + 1) + k * k)).epsilon(1e-4));
+    // A named metal other than 'none' is tabulated by its F0 in vacuum alone: an error naming line and element.
+    const std::string err = x.error(own_line(rect(R"(<bsdf type="conductor" id="gold"><string name="material" value="Au"/>
+        <float name="ext_eta" value="1.33"/></bsdf>)")));
+    CHECK_THAT(err, Catch::Contains("scene.xml:7") && Catch::Contains("id=\"gold\"") && Catch::Contains("ext_eta") &&
+                        Catch::Contains("--lenient"));
+}
+
+TEST_CASE("mitsuba: a lookat up within 1e-7 of the viewing axis still sets the roll; an exactly parallel one is an error",
+          "[mitsuba]") {
+    Xml x;
+    // As the water scene's randomised cameras: looking down -z with up = +z plus a remainder of 1e-7.
+    const auto sensor = [](const std::string& up) {
+        return R"(<sensor type="perspective"><transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up=")" + up +
+               R"("/></transform><film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film></sensor>)";
+    };
+    const std::string light = rect(R"(<emitter type="area"/>)");
+    for (const float sign : {1.f, -1.f}) {
+        CAPTURE(sign);
+        const SceneFile sf = load_scene_file(x.scene(sensor(fmt::format("0, {}, 1", sign * 1e-7f)) + light, false));
+        const Vec3 up = sf.scene->camera().desc().up;
+        CHECK(up.y == Approx(sign).margin(1e-6));
+        CHECK(std::abs(up.x) < 1e-6f);
+        CHECK(std::abs(up.z) < 1e-6f);
+    }
+    CHECK_THROWS_WITH(load_scene_file(x.scene(sensor("0, 0, 1") + light, false)),
+                      Catch::Contains("scene.xml:1") && Catch::Contains("up is parallel to the viewing direction"));
+}
+
 TEST_CASE("mitsuba: transforms apply translate, rotate, scale, matrix and lookat in order", "[mitsuba]") {
     Xml x;
     // Corner (1, 1, 0) of the rectangle: scaled by 2, then moved by x + 1, then turned 90 degrees about z.

@@ -3,13 +3,15 @@
 // that drops every shape or every emitter is an error in both modes, a file
 // named in another case is found, the scene's integrator keeps its path
 // length and notes the rest; cylinders, shapegroups and instances; and every
-// shared Mitsuba scene loads (or names what it lacks) and renders without NaN.
+// shared Mitsuba scene and randomised variant loads strictly unless it lacks
+// a file of its source or uses `coating`, and renders without NaN.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <fmt/core.h>
@@ -18,7 +20,9 @@
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
+#include "gdr/io/exr.h"
 #include "gdr/io/mitsuba_xml.h"
+#include "gdr/io/png.h"
 #include "public_scenes.h"
 
 using namespace gdr;
@@ -214,58 +218,179 @@ TEST_CASE("mitsuba import: a shapegroup renders where its instances place it", "
                Catch::Contains("not a <shape type=\"shapegroup\">"));
 }
 
-TEST_CASE("mitsuba import: every shared Mitsuba scene loads or names what it lacks, and renders without NaN",
+TEST_CASE("mitsuba import: every shared Mitsuba scene and variant whose files are complete loads strictly and renders "
+          "without NaN",
           "[mitsuba][shared]") {
     namespace fs = std::filesystem;
     GDR_PUBLIC_SCENE_OR_SKIP(kSharedMitsuba, "mitsuba");
-    std::vector<fs::path> scenes;
-    for (const auto& d : fs::directory_iterator(kSharedMitsuba))
-        if (fs::exists(d.path() / "scene.xml")) scenes.push_back(d.path() / "scene.xml");
-    // The Cornell box with caustic objects has only variants: the first (which has a Mitsuba reference render).
-    if (fs::exists(kSharedMitsuba + "/cbox-caustics/cbox-caustics_rand_scene0.xml"))
-        scenes.push_back(kSharedMitsuba + "/cbox-caustics/cbox-caustics_rand_scene0.xml");
-    std::sort(scenes.begin(), scenes.end());
-    REQUIRE(!scenes.empty());
-    std::string table;
-    for (const fs::path& path : scenes) {
-        const std::string name = path.parent_path().filename().string();
-        INFO(name);
-        std::string strict = "loads strictly";
-        SceneFileOptions o;
-        try {
-            load_mitsuba_scene(path.string(), o);
-        } catch (const InputError& e) {
-            // Not loading strictly is fine only when the report names what is
-            // unsupported or missing; the two scenes of only supported
-            // elements must load.
-            strict = e.what();
-            CHECK_THAT(strict, Catch::Contains("--lenient") || Catch::Contains("every emitter was dropped"));
-            CHECK(name != "living-room");
-            CHECK(name != "veach-bidir");
+    // Every scene.xml and every randomised variant (*_rand_scene*.xml) of every folder.
+    std::vector<fs::path> files;
+    for (const auto& d : fs::directory_iterator(kSharedMitsuba)) {
+        if (!d.is_directory()) continue;
+        for (const auto& f : fs::directory_iterator(d.path())) {
+            const std::string name = f.path().filename().string();
+            if (name == "scene.xml" || (name.find("_rand_scene") != std::string::npos && f.path().extension() == ".xml"))
+                files.push_back(f.path());
         }
-        o.lenient = true;
-        std::string lenient = "renders";
-        try {
-            SceneFile sf = load_mitsuba_scene(path.string(), o);
-            set_resolution(sf, 16, 9);
-            Params p;
-            p.set("max_depth", 6LL);
-            auto integ = integrator_registry().create("pt", p);
-            RenderSettings st;
-            st.spp = 2;
-            FrameBuffer fb;
-            const RenderStats rs = integ->render(*sf.scene, st, fb);
-            CHECK(rs.nonfinite == 0);
-            for (float v : fb.get("color").values()) REQUIRE(std::isfinite(v));
-            lenient = fmt::format("renders with {} warning(s)", sf.warnings.size());
-        } catch (const InputError& e) {
-            // Only a scene whose every light is unsupported may fail with --lenient.
-            lenient = e.what();
-            CHECK_THAT(lenient, Catch::Contains("every emitter was dropped"));
-        }
-        table += fmt::format("\n== {}\nstrict: {}\nlenient: {}", name, strict, lenient.substr(0, 300));
     }
-    WARN("status of the shared Mitsuba scenes:" << table);
+    std::sort(files.begin(), files.end());
+    REQUIRE(files.size() >= 11);
+    // With --lenient, what a strict load rejects becomes a warning ending in
+    // "(--lenient)". The only ones allowed: files missing from the scenes'
+    // source, and `coating`, which gdr does not model (docs/scenes.md).
+    const auto lenient_only = [](const SceneFile& sf) {
+        std::vector<std::string> w;
+        for (const std::string& s : sf.warnings)
+            if (s.find("(--lenient)") != std::string::npos) w.push_back(s);
+        return w;
+    };
+    size_t strict = 0, missing = 0, coating = 0;
+    std::set<std::string> strict_scenes;
+    for (const fs::path& path : files) {
+        const std::string rel = path.parent_path().filename().string() + "/" + path.filename().string();
+        INFO(rel);
+        SceneFileOptions o;
+        o.lenient = true;
+        SceneFile sf = load_mitsuba_scene(path.string(), o);
+        const std::vector<std::string> dropped = lenient_only(sf);
+        bool lacks_file = false, has_coating = false;
+        for (const std::string& w : dropped) {
+            INFO(w);
+            const bool file = w.find("file not found") != std::string::npos;
+            const bool coat = w.find("unsupported BSDF type 'coating'") != std::string::npos;
+            CHECK((file || coat));
+            lacks_file |= file;
+            has_coating |= coat;
+        }
+        strict += dropped.empty();
+        if (dropped.empty() && path.filename() == "scene.xml") strict_scenes.insert(path.parent_path().filename().string());
+        missing += lacks_file;
+        coating += has_coating;
+        // The scenes themselves: the strict load agrees with the lenient one's
+        // warnings, and a failure names the file and line.
+        if (path.filename() == "scene.xml") {
+            SceneFileOptions so;
+            if (dropped.empty()) {
+                CHECK_NOTHROW(load_mitsuba_scene(path.string(), so));
+            } else {
+                CHECK_THROWS_WITH(load_mitsuba_scene(path.string(), so),
+                                  Catch::Contains(path.string() + ":") && Catch::Contains("file not found"));
+            }
+        }
+        set_resolution(sf, 16, 12);
+        Params p;
+        p.set("max_depth", 6LL);
+        auto integ = integrator_registry().create("pt", p);
+        RenderSettings st;
+        st.spp = 1;
+        FrameBuffer fb;
+        const RenderStats rs = integ->render(*sf.scene, st, fb);
+        CHECK(rs.nonfinite == 0);
+        bool finite = true;
+        for (float v : fb.get("color").values()) finite &= std::isfinite(v);
+        CHECK(finite);
+    }
+    // Of the eleven scenes, all but the two with meshes missing from their
+    // source (spaceship, water) load strictly.
+    for (const char* name : {"box", "classroom", "dining-room", "living-room", "sponza", "torus", "veach-bidir",
+                             "veach-lamp"}) {
+        INFO(name);
+        if (fs::exists(kSharedMitsuba + "/" + name + "/scene.xml")) CHECK(strict_scenes.count(name) == 1);
+    }
+    WARN(fmt::format("shared Mitsuba scenes: {} files, {} load strictly, {} lack a file of the source, {} use coating",
+                     files.size(), strict, missing, coating));
+}
+
+TEST_CASE("mitsuba import: an envmap reads Radiance .hdr as linear and 8-bit files by their gamma", "[mitsuba][environment]") {
+    XmlScene s;
+    // A uniform 8 x 4 Radiance file of (0.5, 0.25, 1): RGBE bytes (64, 32, 128, 129), flat (unencoded) scanlines.
+    {
+        std::ofstream f(s.dir("sky.hdr"), std::ios::binary);
+        f << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 4 +X 8\n";
+        for (int i = 0; i < 32; ++i) f << char(64) << char(32) << char(128) << char(129);
+    }
+    // A uniform 8-bit PNG of the sRGB encoding of linear (0.2, 0.5, 0.8).
+    Image png(8, 4, 3);
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 8; ++x) png.set_rgb(x, y, Color(0.2f, 0.5f, 0.8f));
+    write_png_preview(s.dir("sky.png"), png);
+    const std::vector<uint8_t> b = preview_bytes(png);
+    const auto env = [&](const std::string& file, const std::string& extra) {
+        const SceneFile sf = s.load(R"(<shape type="rectangle"/><emitter type="envmap"><string name="filename" value=")" + file +
+                                    R"("/><float name="scale" value="2"/>)" + extra + "</emitter>");
+        REQUIRE(sf.scene->environment());
+        return sf.scene->environment()->eval(glm::normalize(Vec3(0.3f, 0.5f, -0.8f)));
+    };
+    CHECK(env("sky.hdr", "") == Color(1.f, 0.5f, 2.f));
+    // 8-bit: sRGB by default (as Mitsuba), linear with gamma 1, a power law otherwise.
+    for (int k = 0; k < 3; ++k) {
+        CAPTURE(k);
+        const float v = float(b[size_t(k)]) / 255.f;
+        CHECK(env("sky.png", "")[k] == Approx(2.f * srgb_to_linear(v)).epsilon(1e-5));
+        CHECK(env("sky.png", R"(<float name="gamma" value="1"/>)")[k] == Approx(2.f * v).epsilon(1e-5));
+        CHECK(env("sky.png", R"(<float name="gamma" value="2.2"/>)")[k] == Approx(2.f * std::pow(v, 2.2f)).epsilon(1e-5));
+    }
+    CHECK(env("sky.png", "")[1] == Approx(1.f).epsilon(0.02));  // the decoded PNG is the linear 0.5 it encodes, times 2
+    CHECK_THAT(s.error(R"(<shape type="rectangle"/><emitter type="envmap"><string name="filename" value="sky.png"/>
+                          <float name="gamma" value="0"/></emitter>)"),
+               Catch::Contains("scene.xml:7") && Catch::Contains("gamma must be positive"));
+}
+
+TEST_CASE("mitsuba import: an EXR bitmap is a linear texture oriented as an 8-bit one", "[mitsuba][texture]") {
+    XmlScene s;
+    // Four different texels; the PNG holds them as bytes read linearly (gamma 1), the EXR as those values.
+    Image img(2, 2, 3);
+    const Color c[4] = {Color(0.2f, 0.4f, 0.6f), Color(0.8f, 0.1f, 0.3f), Color(0.5f, 0.9f, 0.05f), Color(0.3f, 0.3f, 0.7f)};
+    for (int k = 0; k < 4; ++k) img.set_rgb(k % 2, k / 2, c[k]);
+    write_png_preview(s.dir("t.png"), img);
+    const std::vector<uint8_t> b = preview_bytes(img);
+    Image lin(2, 2, 3);
+    for (int k = 0; k < 4; ++k)
+        lin.set_rgb(k % 2, k / 2, Color(b[size_t(3 * k)], b[size_t(3 * k + 1)], b[size_t(3 * k + 2)]) / 255.f);
+    write_exr_image(s.dir("t.exr"), lin);
+    const auto kd = [&](const std::string& file, const std::string& extra, const Vec2& uv) {
+        const SceneFile sf = s.load(R"(<shape type="rectangle"><emitter type="area"/></shape><shape type="cube"><bsdf type="diffuse">
+            <texture type="bitmap" name="reflectance"><string name="filename" value=")" + file + R"("/>
+            <string name="filter_type" value="nearest"/>)" + extra + "</texture></bsdf></shape>");
+        const Material& m = sf.scene->materials().at(sf.scene->mesh().material_ids.back());
+        return m.bsdf->eval(Vec3(0.f, 0.f, 1.f), Vec3(0.f, 0.f, 1.f), uv) * kPi;
+    };
+    for (const Vec2 uv : {Vec2(0.25f, 0.25f), Vec2(0.75f, 0.25f), Vec2(0.25f, 0.75f), Vec2(0.75f, 0.75f)}) {
+        CAPTURE(uv.x, uv.y);
+        const Color e = kd("t.exr", "", uv), p = kd("t.png", R"(<float name="gamma" value="1"/>)", uv);
+        for (int k = 0; k < 3; ++k) CHECK(e[k] == Approx(p[k]).epsilon(1e-3));
+    }
+    // Mitsuba's uv (0.25, 0.25) is the image's top-left texel.
+    CHECK(kd("t.exr", "", Vec2(0.25f, 0.75f)).g == Approx(float(b[1]) / 255.f).epsilon(1e-3));
+    // Its gamma cannot apply to linear floats: a warning; an EXR opacity map is unsupported.
+    const SceneFile g = s.load(R"(<shape type="rectangle"><bsdf type="diffuse"><texture type="bitmap" name="reflectance">
+        <string name="filename" value="t.exr"/><float name="gamma" value="2.2"/></texture></bsdf><emitter type="area"/></shape>)");
+    CHECK(std::any_of(g.warnings.begin(), g.warnings.end(),
+                      [](const std::string& w) { return w.find("gamma 2.2 is ignored") != std::string::npos; }));
+    CHECK_THAT(s.error(R"(<shape type="rectangle"><bsdf type="mask"><texture type="bitmap" name="opacity">
+        <string name="filename" value="t.exr"/></texture><bsdf type="diffuse"/></bsdf><emitter type="area"/></shape>)"),
+               Catch::Contains("scene.xml:6") && Catch::Contains("EXR opacity map"));
+}
+
+TEST_CASE("mitsuba import: the sky's stretch and extend below the horizon are errors naming line and element",
+          "[mitsuba][sky][errors]") {
+    XmlScene s;
+    const auto sky = [](const std::string& props) {
+        return "<shape type=\"rectangle\"/>\n<emitter type=\"sky\" id=\"daylight\"><integer name=\"resolution\" value=\"16\"/>" +
+               props + "</emitter>";
+    };
+    // Their defaults are what gdr renders: accepted silently.
+    CHECK(s.load(sky(R"(<float name="stretch" value="1"/><boolean name="extend" value="false"/>)")).warnings.empty());
+    // Otherwise the sky below the horizon would differ: strict errors, both listed at once (body line 7).
+    const std::string both = sky("<float name=\"stretch\" value=\"1.5\"/>\n<boolean name=\"extend\" value=\"true\"/>");
+    const std::string e = s.error(both);
+    CHECK_THAT(e, Catch::Contains("scene.xml:7: <emitter type=\"sky\" id=\"daylight\">") && Catch::Contains("'stretch' 1.5") &&
+                      Catch::Contains("scene.xml:8: <boolean name=\"extend\">") && Catch::Contains("--lenient"));
+    const SceneFile l = s.load(both, true);
+    CHECK(l.scene->environment() != nullptr);
+    std::string all;
+    for (const std::string& w : l.warnings) all += w + "\n";
+    CHECK(count_of(all, "(--lenient)") == 2);
 }
 
 TEST_CASE("mitsuba import: a mirroring sensor to_world shows the world mirrored", "[mitsuba]") {

@@ -33,6 +33,7 @@
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
 #include "gdr/scene/sky.h"
+#include "gdr/scene/texture.h"
 #include "mitsuba_shapes.h"
 #include "obj_lines.h"
 
@@ -693,25 +694,26 @@ Mat4 Importer::transform_of(xml_node t, bool* nine) {
             const auto vec = [&](const char* a, bool need) {
                 if (!c.attribute(a)) {
                     if (need) fail(c, std::string("missing attribute '") + a + "'");
-                    return Vec3(0.f, 1.f, 0.f);
+                    return glm::dvec3(0.0, 1.0, 0.0);
                 }
                 const auto v = numbers(c, attr(c, a), std::string("'") + a + "'");
                 if (v.size() != 3) fail(c, std::string("'") + a + "' must hold 3 numbers");
-                return Vec3(float(v[0]), float(v[1]), float(v[2]));
+                return glm::dvec3(v[0], v[1], v[2]);
             };
-            const Vec3 o = vec("origin", true), target = vec("target", true), up = vec("up", false);
+            // In double precision: a randomised camera may give an up vector
+            // within 1e-7 of the viewing axis whose small remainder still
+            // decides the roll (as it does in Mitsuba's own cross product).
+            const glm::dvec3 o = vec("origin", true), target = vec("target", true), up = vec("up", false);
             // Farther, |target - origin| overflows and the message below would blame the up vector.
-            for (const auto& [a, v] : {std::pair<const char*, Vec3>{"origin", o}, {"target", target}})
-                if (!within_coordinate_range(v))
+            for (const auto& [a, v] : {std::pair<const char*, glm::dvec3>{"origin", o}, {"target", target}})
+                if (!within_coordinate_range(Vec3(v)))
                     fail(c, fmt::format("'{}' ({}, {}, {}) is beyond +-{:g} on an axis", a, v.x, v.y, v.z, kMaxCoordinate));
-            const Vec3 d = target - o;
-            if (!(glm::length(d) > 0.f)) fail(c, "origin and target coincide");
-            const Vec3 dir = glm::normalize(d);
-            const Vec3 l = glm::cross(up, dir);
-            if (!(glm::length(l) > 1e-6f)) fail(c, "up is parallel to the viewing direction");
-            const Vec3 left = glm::normalize(l);
-            const Vec3 new_up = glm::cross(dir, left);
-            op = Mat4(Vec4(left, 0.f), Vec4(new_up, 0.f), Vec4(dir, 0.f), Vec4(o, 1.f));
+            if (!(glm::length(target - o) > 0.0)) fail(c, "origin and target coincide");
+            const glm::dvec3 dir = glm::normalize(target - o);
+            const glm::dvec3 l = glm::cross(up, dir);
+            if (!(glm::length(l) > 1e-12 * glm::length(up))) fail(c, "up is parallel to the viewing direction");
+            const glm::dvec3 left = glm::normalize(l), new_up = glm::cross(dir, left);
+            op = Mat4(Vec4(Vec3(left), 0.f), Vec4(Vec3(new_up), 0.f), Vec4(Vec3(dir), 0.f), Vec4(Vec3(o), 1.f));
         } else {
             fail(c, "unknown transform operation <" + tag + "> (expected translate, rotate, scale, matrix, lookat)");
         }
@@ -770,9 +772,12 @@ Color Importer::conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spe
         for (const NamedConductor& c : kConductors) list += (list.empty() ? "" : ", ") + std::string(c.name);
         fail(n, "unknown conductor material '" + material + "' (known: " + list + ")");
     } else if (ext != 1.f && material != "none") {
-        // "none" is a perfect mirror in any medium; a named metal's tabulated
-        // reflectance is for vacuum only.
-        unsupported(n, "a named conductor in a medium other than vacuum (ext_eta)", "ignores ext_eta");
+        // Only F0 in vacuum is tabulated here, not the metal's eta and k that
+        // ext_eta divides. 'none' (eta 0, k 1) reflects everything in any
+        // medium, since Fresnel's conductor reflectance is 1 at eta 0 for every
+        // k and angle, so it needs no table.
+        unsupported(n, "a named conductor other than 'none' in a medium other than vacuum (ext_eta; give eta and k instead)",
+                    "ignores ext_eta");
     }
     if (spec_texture) {
         // A texture (or colour) multiplying the reflectance per uv.
@@ -1104,13 +1109,23 @@ std::shared_ptr<Texture> Importer::bitmap(xml_node n, Props& p, bool opacity) {
                 file + why + (opacity ? "; the surface is opaque (--lenient)" : "; it is mid-grey 0.5 (--lenient)"));
         return make_constant_texture(Color(opacity ? 1.f : 0.5f));
     }
+    std::string ext = fs::path(file).extension().string();
+    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext == ".exr" && opacity) {
+        unsupported(n, "an EXR opacity map (give an 8-bit image with alpha)", "makes the surface opaque");
+        return make_constant_texture(Color(1.f));
+    }
+    if (ext == ".exr" && gamma_given && gamma != 1.f)
+        warn(n, fmt::format("gamma {} is ignored: an EXR bitmap is read as linear values", gamma));
     try {
         // Mitsuba 0.x's bitmap drops an image's alpha channel and gives its
         // colour to whatever reads it, a mask's opacity too: a cut-out leaf
         // stored as green on a transparent white card is, there, a mostly
         // opaque white card (the shared living room's plants). Mitsuba's
         // opacity is per channel; gdr's is one number, the colour's luminance.
-        t = opacity ? load_opacity_texture(file, io, version_major_ >= 2) : load_image_texture(file, io);
+        // EXR holds linear floats, read by gdr's EXR reader (stb reads the rest).
+        if (ext == ".exr") t = make_image_texture(read_exr_rgb(file), io);
+        else t = opacity ? load_opacity_texture(file, io, version_major_ >= 2) : load_image_texture(file, io);
     } catch (const InputError& e) {
         fail(n, e.what());
     }
@@ -1809,16 +1824,31 @@ void Importer::emitter(xml_node n) {
             } else {
                 const std::string name = get_string(p, "filename", "");
                 if (name.empty()) fail(n, "an envmap needs a 'filename'");
+                const std::string file = file_path(n, name);
+                std::string ext = fs::path(file).extension().string();
+                for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+                // Mitsuba reads any bitmap: float files (EXR, Radiance .hdr)
+                // are linear; 8-bit ones sRGB unless `gamma` says otherwise
+                // (1 linear, -1 sRGB, else a power law), as for bitmap textures.
+                const bool exr = ext == ".exr";
                 bool gamma_given = false;
-                const float gamma = get_float(p, "gamma", 1.f, &gamma_given);
-                if (gamma_given && gamma != 1.f)
-                    warn(n, fmt::format("gamma {} is ignored: the map is read as linear radiance (an EXR)", gamma));
+                const float gamma = get_float(p, "gamma", -1.f, &gamma_given);
+                ImageTextureOptions io;
+                if (gamma_given && gamma == 1.f) {
+                    io.srgb = false;
+                } else if (gamma_given && gamma != -1.f) {
+                    if (!(gamma > 0.f) || !std::isfinite(gamma))
+                        fail(p.named.at("gamma"), "gamma must be positive, or -1 for sRGB");
+                    io.gamma = gamma;
+                }
+                if (exr && gamma_given && gamma != 1.f)
+                    warn(n, fmt::format("gamma {} is ignored: an EXR map is read as linear radiance", gamma));
                 ignore(p, {"cache", "filter_type", "mis_compensation"});
                 const Mat4 xf = get_transform(p, "to_world");
                 finish(p);
-                const std::string file = file_path(n, name);
                 inputs_.push_back(file);
-                environment_ = Environment::from_map(read_exr_rgb(file), glm::mat3(mirror_ * xf), scale, file);
+                environment_ = Environment::from_map(exr ? read_exr_rgb(file) : read_image_rgb(file, io),
+                                                     glm::mat3(mirror_ * xf), scale, file);
             }
         } catch (const InputError& e) {
             // Errors of the map or its values, placed at the element.

@@ -194,14 +194,22 @@ std::shared_ptr<Texture> load_image_texture(const std::string& path, const Color
     return load_image_texture(path, o);
 }
 
-std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options) {
+Image read_image_rgb(const std::string& path, const ImageTextureOptions& options) {
     const Pixels p = read_pixels(path, 3);
     std::array<float, 256> lut;
     for (int i = 0; i < 256; ++i) lut[i] = decode_8bit(float(i) / 255.f, options);
     Image img(p.w, p.h, 3);
     float* dst = img.data();
     for (size_t i = 0; i < p.v.size(); ++i) dst[i] = p.hdr ? p.v[i] : lut[size_t(std::lround(p.v[i] * 255.f))];
-    return std::make_shared<ImageTexture>(std::move(img), options.scale, options.wrap, options.nearest);
+    return img;
+}
+
+std::shared_ptr<Texture> make_image_texture(Image linear_rgb, const ImageTextureOptions& options) {
+    return std::make_shared<ImageTexture>(std::move(linear_rgb), options.scale, options.wrap, options.nearest);
+}
+
+std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options) {
+    return std::make_shared<ImageTexture>(read_image_rgb(path, options), options.scale, options.wrap, options.nearest);
 }
 
 std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options,

@@ -51,9 +51,19 @@ struct ImageTextureOptions {
     bool nearest = false;                    ///< The nearest texel instead of bilinear interpolation.
 };
 
+/// An image texture of linear RGB pixels (row 0 at the top) looked up with
+/// options.scale, wrap and nearest (srgb and gamma do not apply: the pixels are linear).
+std::shared_ptr<Texture> make_image_texture(Image linear_rgb, const ImageTextureOptions& options);
+
 /// An image texture read with `options`; throws InputError naming the file if
 /// it is missing or unreadable.
 std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options);
+
+/// The linear RGB pixels (row 0 at the top) of an 8-bit image (PNG, JPEG,
+/// ..., decoded by options.srgb / options.gamma) or a Radiance .hdr file (as
+/// stored), as load_image_texture reads them; options.scale, wrap and
+/// nearest do not apply. Throws InputError naming the file.
+Image read_image_rgb(const std::string& path, const ImageTextureOptions& options);
 
 /// The opacity of an image as a grey texture (unitless in [0, 1]): its alpha
 /// channel, as stored, where the file has one and `use_alpha` is set, else the
