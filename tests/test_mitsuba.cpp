@@ -156,7 +156,7 @@ TEST_CASE("mitsuba: rectangle, cube, sphere and disk are triangulated with outwa
     CHECK(bounds(*d.scene).second.x == Approx(1.f));
 }
 
-TEST_CASE("mitsuba: ext_eta on the named conductor 'none' keeps its perfect mirror; other names with ext_eta are errors",
+TEST_CASE("mitsuba: ext_eta on the named conductor 'none' keeps its perfect mirror, and other names with ext_eta are errors",
           "[mitsuba]") {
     Xml x;
     // The closed box's mirrors: Mitsuba 0.6's 'none' (eta 0, k 1) in air still reflects everything.
@@ -178,7 +178,7 @@ TEST_CASE("mitsuba: ext_eta on the named conductor 'none' keeps its perfect mirr
                         Catch::Contains("--lenient"));
 }
 
-TEST_CASE("mitsuba: a lookat up within 1e-7 of the viewing axis still sets the roll; an exactly parallel one is an error",
+TEST_CASE("mitsuba: a lookat up within 1e-7 of the viewing axis still sets the roll, and an exactly parallel one is an error",
           "[mitsuba]") {
     Xml x;
     // As the water scene's randomised cameras: looking down -z with up = +z plus a remainder of 1e-7.
