@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "gdr/integrators/gpt.h"
+#include "../src/shift/offset_packets.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/trace.h"

@@ -678,3 +678,24 @@ TEST_CASE("trace_path: a camera ray into an emitter returns its radiance and fir
     CHECK(r.albedo == Color(0.f));
     CHECK(r.rays == 1);  // a black BSDF ends the path; a light sample in the emitter's own plane casts no shadow ray
 }
+
+namespace {
+// Declares its slots and nothing else: overrides neither sample() nor sample_batch().
+class NoSamples final : public TiledIntegrator {
+public:
+    std::string describe() const override { return ""; }
+
+protected:
+    std::vector<SlotSpec> slots() const override { return {{"v", 1, false}}; }
+};
+}  // namespace
+
+TEST_CASE("tiled integrators: one that computes no sample is refused with a named error", "[pt][tiled][errors]") {
+    auto scene = test::small_box("Original", 4);
+    NoSamples integ;
+    RenderSettings st;
+    st.spp = 1;
+    FrameBuffer fb;
+    CHECK_THROWS_WITH(static_cast<Integrator&>(integ).render(*scene, st, fb),
+                      Contains("overrides neither sample() nor sample_batch()"));
+}

@@ -28,7 +28,6 @@ public:
 protected:
     std::vector<gdr::SlotSpec> slots() const override { return {{"color", 3, false}}; }
     int splat_layers() const override { return 1; }
-    void sample(const gdr::Scene&, int, int, gdr::Sampler&, float*, uint64_t&) const override {}
 
     void sample_batch(const gdr::Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                       uint64_t& rays) const override {

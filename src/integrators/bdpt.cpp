@@ -63,12 +63,6 @@ protected:
     int splat_layers() const override { return 1 + int(splat_names_.size()); }
     int batch_size() const override { return batch_; }
 
-    void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const override {
-        // Never called: an integrator with splat layers is run through sample_batch().
-        SampleJob job{x, y, sampler, nullptr};
-        sample_batch(scene, &job, 1, out, 0, rays);
-    }
-
     void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                       uint64_t& rays) const override {
         thread_local Subpath camera, light;

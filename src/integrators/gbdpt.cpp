@@ -187,11 +187,6 @@ protected:
     int splat_layers() const override { return 1 + kDirs; }
     int batch_size() const override { return batch_; }
 
-    void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const override {
-        SampleJob job{x, y, sampler, nullptr};
-        sample_batch(scene, &job, 1, out, 0, rays);
-    }
-
     void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                       uint64_t& rays) const override {
         for (int j = 0; j < n; ++j) estimate(scene, jobs[j], out + size_t(j) * stride, rays);

@@ -11,6 +11,7 @@
 #include <tbb/parallel_for.h>
 
 #include "gdr/integrators/gpt.h"
+#include "../shift/offset_packets.h"
 #include "gdr/integrators/gradient_film.h"
 #include "gdr/integrators/tiled.h"
 #include "gdr/path/dims.h"
@@ -111,11 +112,6 @@ protected:
     }
     /// Floats one sample writes for half_slots().
     int half_floats() const { return half_floats_; }
-
-    void sample(const Scene& scene, int px, int py, Sampler& sampler, float* out, uint64_t& rays) const override {
-        SampleJob job{px, py, sampler};
-        sample_batch(scene, &job, 1, out, 0, rays);
-    }
 
     int batch_size() const override { return batch_; }
 

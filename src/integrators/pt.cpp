@@ -5,7 +5,7 @@
 // emitter the walk hit (s = 0) and the vertex's light sample (s = 1).
 #include <tuple>
 
-#include "gdr/core/in_place.h"
+#include "gdr/detail/in_place.h"
 #include "gdr/path/connection.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/walk.h"
@@ -40,11 +40,6 @@ protected:
         return {{"color", 3, true}, {"albedo", 3, false}, {"normal", 3, false}, {"depth", 1, false}};
     }
 
-    void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const override {
-        SampleJob job{x, y, sampler};
-        sample_batch(scene, &job, 1, out, 0, rays);
-    }
-
     int batch_size() const override { return batch_; }
 
     void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
@@ -74,7 +69,7 @@ protected:
                 Sampler& sampler = jobs[base + j].sampler;
                 sampler.set_dimension(dims::kFilm);
                 const Vec2 film = Vec2(float(jobs[base + j].x), float(jobs[base + j].y)) + sampler.next2d();
-                assign_in_place(ray[j], [&] { return scene.camera().generate_ray(film); });
+                detail::assign_in_place(ray[j], [&] { return scene.camera().generate_ray(film); });
                 sip[j] = begin_camera_subpath(scene, ray[j], paths[j]);
                 // The first vertex's light prefetch, which the walk otherwise
                 // does a vertex ahead: the packet's traversal hides the load.

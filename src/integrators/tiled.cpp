@@ -75,6 +75,10 @@ struct TiledIntegrator::Buffers {
     }
 };
 
+void TiledIntegrator::sample(const Scene&, int, int, Sampler&, float*, uint64_t&) const {
+    throw RuntimeFailure("an integrator derived from TiledIntegrator overrides neither sample() nor sample_batch()");
+}
+
 void TiledIntegrator::sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                                    uint64_t& rays) const {
     for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
@@ -428,8 +432,9 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                             if (batch == 1 && !use_jobs) {
                                 // One at a time: no job queue between the sample and its sums.
                                 std::fill(vp, vp + stride, 0.f);
-                                Sampler sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
-                                sample(scene, x, y, sampler, vp, local_rays);
+                                SampleJob one{x, y, Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)))};
+                                one.index = uint32_t(i);
+                                sample_batch(scene, &one, 1, vp, stride, local_rays);
                                 add(vp, x, y, taken(x, y, i), pm, pq);
                                 continue;
                             }

@@ -1,6 +1,6 @@
 #include "gdr/path/trace.h"
 
-#include "gdr/core/in_place.h"
+#include "gdr/detail/in_place.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/walk.h"
 
@@ -28,7 +28,7 @@ struct RecordLightSamples {
             return;
         const Vec2 u_point = sampler.at2(dims::vertex(int(k)) + dims::kLightPoint);
         c.valid = true;
-        assign_in_place(c.light, [&] { return scene.sample_light(x.si.p, x.u_light, u_point); });
+        detail::assign_in_place(c.light, [&] { return scene.sample_light(x.si.p, x.u_light, u_point); });
         c.u_select = x.u_light;
         c.u_point = u_point;
         c.measure(x.si, x.si.frame.to_local(x.wo));
@@ -46,7 +46,7 @@ SurfaceInteraction* begin_camera_path(const Scene& scene, const Vec2& film, Came
     path.film = film;
     path.nee.clear();
     path.nee.emplace_back();  // the camera's: none
-    assign_in_place(ray, [&] { return scene.camera().generate_ray(film); });
+    detail::assign_in_place(ray, [&] { return scene.camera().generate_ray(film); });
     return begin_camera_subpath(scene, ray, path);
 }
 

@@ -1,7 +1,8 @@
 #include "gdr/shift/offset_path.h"
+#include "offset_packets.h"
 
 #include "gdr/core/error.h"
-#include "gdr/core/in_place.h"
+#include "gdr/detail/in_place.h"
 #include "gdr/path/trace.h"
 #include "gdr/shift/half_vector.h"
 #include "gdr/shift/reconnection.h"
@@ -246,7 +247,7 @@ void reset(OffsetPath& out) {
 // through film + pixel_offset that reaches it; returns where that ray's hit goes.
 SurfaceInteraction* start_offset(const Scene& scene, const Vec2& film, const Vec2& pixel_offset, OffsetPath& out,
                                  Ray& ray) {
-    assign_in_place(ray, [&] { return scene.camera().generate_ray(film + pixel_offset); });
+    detail::assign_in_place(ray, [&] { return scene.camera().generate_ray(film + pixel_offset); });
     out.rays = 1;
     out.v.emplace_back().y.si.p = ray.o;
     return &out.v.emplace_back().y.si;
@@ -410,7 +411,7 @@ void walk_offset(const Scene& scene, const Shift& shift, const ShiftConfig& conf
         }
         // The walk tests a reconnection's segment itself (queued, or at once)
         // unless the shift did: every traced segment is then counted, blocked or not.
-        assign_in_place(s, [&] { return shift.step(ShiftStepInput{scene, config, base, k, y, true}); });
+        detail::assign_in_place(s, [&] { return shift.step(ShiftStepInput{scene, config, base, k, y, true}); });
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection

@@ -159,8 +159,10 @@ protected:
     virtual std::vector<SlotSpec> slots() const = 0;
     /// Computes one sample of pixel (x, y) with `sampler` (already keyed to the
     /// pixel and sample index) and writes all slots consecutively to `out`
-    /// (zero-initialised); adds the rays it cast to `rays`.
-    virtual void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const = 0;
+    /// (zero-initialised); adds the rays it cast to `rays`. An integrator
+    /// overrides this, or sample_batch() instead; the default throws
+    /// RuntimeFailure (neither was overridden).
+    virtual void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const;
     /// One sample to compute: its pixel and its sampler (keyed to the pixel
     /// and sample index).
     struct SampleJob {
@@ -172,11 +174,12 @@ protected:
         /// The sample's number within its pixel (0 where sample() made the job).
         uint32_t index = 0;
     };
-    /// Computes jobs[0..n) as sample() each, job i writing its slots to
+    /// Computes jobs[0..n) (n <= batch_size()), job i writing its slots to
     /// out + i * stride (zero-initialised); adds the rays cast to `rays`. The
-    /// default calls sample() per job. An integrator whose sample runs through
-    /// more code than the instruction cache holds overrides it to run the
-    /// stages of several samples in turn; results must not depend on n.
+    /// one entry point render() calls. The default calls sample() per job. An
+    /// integrator whose sample runs through more code than the instruction
+    /// cache holds overrides it to run the stages of several samples in turn;
+    /// results must not depend on n.
     virtual void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
                               uint64_t& rays) const;
     /// Number of splat layers (SplatList) the samples write, each three

@@ -10,7 +10,7 @@
 // will share; bidirectional methods only record (RecordVertices).
 #pragma once
 
-#include "gdr/core/in_place.h"
+#include "gdr/detail/in_place.h"
 #include "gdr/core/sampler.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/environment.h"
@@ -139,7 +139,7 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
             x.rr_survival = q;
         }
         if (is_black(beta)) return;
-        assign_in_place(ray, [&] { return spawn_ray(si, wi_world); });
+        detail::assign_in_place(ray, [&] { return spawn_ray(si, wi_world); });
         u_sel = sampler.at2(vertex_block(mode, k + 1) + dims::kLightSelect);
         if (prefetch) scene.prefetch_light(u_sel.x);
     }

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "gdr/detail/prefetch.h"
 #include "gdr/core/math.h"
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/camera.h"
@@ -259,8 +260,8 @@ public:
     void prefetch_light(float u_sel) const {
         if (buckets_.empty()) return;
         const char* b = reinterpret_cast<const char*>(&buckets_[light_pick(u_sel).bucket]);
-        prefetch(b);
-        prefetch(b + 64);
+        detail::prefetch(b);
+        detail::prefetch(b + 64);
     }
     /// True if the point of triangle `prim` at barycentrics (b1, b2) is cut
     /// out by its material's opacity (Material::opacity), so rays pass it.
@@ -409,15 +410,6 @@ private:
         const LightPick k = light_pick(u_sel);
         const LightBucket& b = buckets_[k.bucket];
         return b.e[!(k.fraction < b.e[0].keep)];
-    }
-    // A cache-line prefetch the optimiser cannot drop (GCC discards
-    // __builtin_prefetch in some inlined contexts at -O2).
-    static void prefetch(const void* p) {
-#if defined(__x86_64__) || defined(__i386__)
-        asm volatile("prefetcht0 %0" : : "m"(*static_cast<const char*>(p)));
-#else
-        __builtin_prefetch(p);
-#endif
     }
     // The per-ray working set is kept small on purpose: beyond the L2 cache a
     // miss costs 150-450 ns on our machines, more than the BVH traversal, and

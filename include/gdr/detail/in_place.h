@@ -1,11 +1,13 @@
-// Overwriting an existing record with a function's result without a copy.
+// Overwriting an existing record with a function's result without a copy: a
+// performance device of the path walks, internal to the library (its
+// headers' templates use it, so it is installed, in gdr::detail).
 #pragma once
 
 #include <new>
 #include <type_traits>
 #include <utility>
 
-namespace gdr {
+namespace gdr::detail {
 
 /// Replaces `dst` with the value `make()` returns, built directly in `dst`.
 /// Why: `dst = f()` builds f's result in a temporary and copies it 16 bytes
@@ -19,4 +21,4 @@ void assign_in_place(T& dst, Make&& make) {
     ::new (static_cast<void*>(&dst)) T(std::forward<Make>(make)());
 }
 
-}  // namespace gdr
+}  // namespace gdr::detail
