@@ -19,6 +19,7 @@
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/microfacet.h"
 #include "gdr/scene/warp.h"
+#include "plastic_lobes.h"
 
 namespace gdr {
 namespace {
@@ -80,20 +81,10 @@ public:
         const float side = wo.z > 0.f ? 1.f : -1.f;
         const Vec3 wo_up = up(wo);
         const float ps = p_spec(wo_up.z);
-        Vec3 wi_up;
         BsdfSample s;
-        if (u_lobe >= ps) {
-            wi_up = warp::square_to_cosine_hemisphere(u);
-            s.lobe = kReflection | kDiffuse;
-            s.roughness = 1.f;
-        } else {
-            const Vec3 m = mf_.sample_normal(wo_up, u);
-            if (glm::dot(wo_up, m) <= 0.f) return std::nullopt;  // Beckmann's D cos sampling only
-            wi_up = reflect(wo_up, m);
-            s.lobe = kReflection | kGlossy;
-            s.roughness = mf_.alpha;
-        }
-        if (wi_up.z <= 0.f) return std::nullopt;
+        const std::optional<Vec3> sampled = detail::sample_plastic_lobe(u_lobe >= ps, mf_, wo_up, u, s);
+        if (!sampled) return std::nullopt;
+        const Vec3 wi_up = *sampled;
         const GgxReflection g = mf_.reflection(wo_up, wi_up);
         s.pdf = pdf_up(g, wo_up, wi_up);
         if (!(s.pdf > 0.f)) return std::nullopt;
