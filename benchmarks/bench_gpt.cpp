@@ -6,7 +6,7 @@
 //     runs), in wall-clock time and in process CPU time (user + system, all
 //     threads): on a shared virtual machine other guests inflate the first.
 //     Whole renders include per-render fixed costs (allocating and zeroing the
-//     accumulators, ~160 MB for G-PT at 512x512, and finalisation); the
+//     accumulators, ~70 MB for G-PT at 512x512, and finalisation); the
 //     marginal cost differences a short and a long render of each method so
 //     that only the cost of the extra samples remains; the sampling cost takes
 //     the process CPU time between the first and the last finished tile of the

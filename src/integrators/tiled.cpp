@@ -27,7 +27,7 @@ constexpr int kMaxBatch = 16;  // most jobs per sample_batch() call
 using Clock = std::chrono::steady_clock;
 
 // Uninitialised values on transparent huge pages where the kernel offers them:
-// a 1280x720 render accumulates ~100 MB, and faulting that in as 4 KiB pages
+// a 1280x720 render accumulates 50 MB (pt) to 240 MB (gpt), and faulting that in as 4 KiB pages
 // costs more than a sample per pixel on a virtual machine.
 template <typename T>
 struct HugeArray {
