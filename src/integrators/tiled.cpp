@@ -49,6 +49,38 @@ struct HugeArray {
 };
 using HugeFloats = HugeArray<float>;
 using HugeDoubles = HugeArray<double>;
+// Where each slot's channels sit in a pixel's accumulators.
+struct SlotLayout {
+    std::vector<int> offset;      // per slot: first channel among the means
+    std::vector<int> var_offset;  // per slot: first channel among the squared deviations (-1: none)
+    int stride = 0;               // channels per pixel
+    int var_stride = 0;           // channels with a variance per pixel
+    // The sample values whose squared deviations are kept, as runs of
+    // consecutive channels (from, to, length) in squared-deviation order:
+    // slots with a variance usually come first, so one run covers them and
+    // its loop vectorises.
+    struct Run {
+        int from, to, n;
+    };
+    std::vector<Run> squared;
+};
+
+SlotLayout slot_layout(const std::vector<SlotSpec>& specs) {
+    SlotLayout l;
+    for (const auto& s : specs) {
+        l.offset.push_back(l.stride), l.stride += s.channels;
+        l.var_offset.push_back(s.variance ? l.var_stride : -1), l.var_stride += s.variance ? s.channels : 0;
+    }
+    for (size_t s = 0; s < specs.size(); ++s)
+        if (specs[s].variance) {
+            if (!l.squared.empty() && l.squared.back().from + l.squared.back().n == l.offset[s] &&
+                l.squared.back().to + l.squared.back().n == l.var_offset[s])
+                l.squared.back().n += specs[s].channels;
+            else
+                l.squared.push_back({l.offset[s], l.var_offset[s], specs[s].channels});
+        }
+    return l;
+}
 }  // namespace
 
 struct TiledIntegrator::Buffers {
@@ -149,16 +181,7 @@ std::vector<Image> Accumulated::images(const std::vector<Want>& wanted) const {
     return out;
 }
 
-RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st, FrameBuffer& out,
-                                    const ProgressFn& progress) {
-    if (rendering_.exchange(true))
-        throw RuntimeFailure("this integrator is already rendering: concurrent renders need one integrator each");
-    struct Release {
-        std::atomic<bool>& flag;
-        const Image*& density;
-        const Image*& mask;
-        ~Release() { flag = false, density = nullptr, mask = nullptr; }
-    } release{rendering_, density_, mask_};
+void TiledIntegrator::check_settings(const RenderSettings& st, int W, int H) const {
     if (st.time_budget <= 0.0 && st.spp <= 0) throw ParameterError("spp must be positive");
     if (st.first_sample < 0) throw ParameterError("first sample index must be non-negative");
     // A sample's number is 32 bits of its sampler key: past 2^32 a pixel's
@@ -167,7 +190,6 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
         throw ParameterError(fmt::format("spp {} from sample {} on exceeds the 2^32 samples per pixel a sampler "
                                          "numbers",
                                          st.spp, st.first_sample));
-    const int W = scene.camera().width(), H = scene.camera().height();
     const Image* density = st.sample_density;
     if (density) {
         if (splat_layers() > 0)
@@ -206,32 +228,31 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                     throw ParameterError(
                         fmt::format("gradient mask: pixel ({}, {}) holds {}, not 0 or 1", x, y, m));
     }
+}
+
+RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st, FrameBuffer& out,
+                                    const ProgressFn& progress) {
+    if (rendering_.exchange(true))
+        throw RuntimeFailure("this integrator is already rendering: concurrent renders need one integrator each");
+    struct Release {
+        std::atomic<bool>& flag;
+        const Image*& density;
+        const Image*& mask;
+        ~Release() { flag = false, density = nullptr, mask = nullptr; }
+    } release{rendering_, density_, mask_};
+    const int W = scene.camera().width(), H = scene.camera().height();
+    check_settings(st, W, H);
+    const Image* density = st.sample_density;
+    const Image* mask = st.gradient_mask;
     density_ = density;
     mask_ = mask;
     prepare(scene);
     begin_render(scene, st);
     const std::vector<SlotSpec> specs = slots();
-    std::vector<int> offset, var_offset;  // per slot: first channel in the sums / in the squared sums (-1: none)
-    int stride = 0, var_stride = 0;
-    for (const auto& s : specs) {
-        offset.push_back(stride), stride += s.channels;
-        var_offset.push_back(s.variance ? var_stride : -1), var_stride += s.variance ? s.channels : 0;
-    }
-    // The sample values whose squares are summed, as runs of consecutive
-    // channels (from, to, length) in squared-sum order: slots with a variance
-    // usually come first, so one run covers them and its loop vectorises.
-    struct Run {
-        int from, to, n;
-    };
-    std::vector<Run> squared;
-    for (size_t s = 0; s < specs.size(); ++s)
-        if (specs[s].variance) {
-            if (!squared.empty() && squared.back().from + squared.back().n == offset[s] &&
-                squared.back().to + squared.back().n == var_offset[s])
-                squared.back().n += specs[s].channels;
-            else
-                squared.push_back({offset[s], var_offset[s], specs[s].channels});
-        }
+    const SlotLayout layout = slot_layout(specs);
+    const std::vector<int>&offset = layout.offset, &var_offset = layout.var_offset;
+    const int stride = layout.stride, var_stride = layout.var_stride;
+    const std::vector<SlotLayout::Run>& squared = layout.squared;
 
     // Each pixel keeps the running mean of every channel and, where a
     // variance is asked for, the sum of squared deviations from it, updated
@@ -391,7 +412,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                     }
                     const double inv = 1.0 / double(k + 1);
                     // Squared deviations first: they need the mean before and after.
-                    for (const Run& run : squared) {
+                    for (const SlotLayout::Run& run : squared) {
                         const float* r = a + run.from;
                         const float* m = pm + run.from;
                         float* q = pq + run.to;

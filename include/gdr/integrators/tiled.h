@@ -232,6 +232,10 @@ protected:
     bool masked() const { return mask_ != nullptr; }
 
 private:
+    // Throws ParameterError naming what is wrong with `st` for a W x H
+    // render: sample counts, the sample density's and the gradient mask's
+    // size and values, and whether this integrator takes them.
+    void check_settings(const RenderSettings& st, int W, int H) const;
     struct Buffers;
     std::unique_ptr<Buffers> buffers_;
     const Image* density_ = nullptr;  // RenderSettings::sample_density of the render under way
