@@ -386,6 +386,7 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                 const float* zeros = zero_stack;
                 if (stride > 64) zero_heap.assign(size_t(stride), 0.f), zeros = zero_heap.data();
                 SampleJob jobs[kMaxBatch];
+                long long job_taken[kMaxBatch];  // per job: the render's samples of its pixel before it
                 int n = 0;
                 SplatList* splats = splatting ? &tile_splats[ti] : nullptr;
                 if (splats) splats->splats_.clear();
@@ -424,16 +425,12 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                     }
                     for (int c = 0; c < stride; ++c) pm[c] = float(double(pm[c]) + (double(a[c]) - double(pm[c])) * inv);
                 };
-                // The render's own samples of pixel (x, y) before its sample number i.
-                const auto taken = [&](int x, int y, long long i) {
-                    return i - count_at(x, y, st.first_sample);
-                };
                 const auto flush = [&] {
                     std::fill(vp, vp + size_t(n) * stride, 0.f);
                     sample_batch(scene, jobs, n, vp, stride, local_rays);
                     for (int j = 0; j < n; ++j) {
                         const size_t at = size_t(jobs[j].y) * W + jobs[j].x;
-                        add(vp + size_t(j) * stride, jobs[j].x, jobs[j].y, taken(jobs[j].x, jobs[j].y, jobs[j].index),
+                        add(vp + size_t(j) * stride, jobs[j].x, jobs[j].y, job_taken[j],
                             &mean[at * stride], &m2[at * var_stride]);
                     }
                     n = 0;
@@ -448,6 +445,8 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                         }
                         const uint64_t pixel_stream = SampleKey{st.seed, uint32_t(x), uint32_t(y), 0}.pixel_stream();
                         const long long i0 = count_at(x, y, first), i1 = count_at(x, y, first + count);
+                        // The render's own samples of the pixel before its sample number i are i - before.
+                        const long long before = count_at(x, y, st.first_sample);
                         local_samples += uint64_t(i1 - i0);
                         for (long long i = i0; i < i1; ++i) {
                             if (batch == 1 && !use_jobs) {
@@ -456,10 +455,11 @@ RenderStats TiledIntegrator::render(const Scene& scene, const RenderSettings& st
                                 SampleJob one{x, y, Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)))};
                                 one.index = uint32_t(i);
                                 sample_batch(scene, &one, 1, vp, stride, local_rays);
-                                add(vp, x, y, taken(x, y, i), pm, pq);
+                                add(vp, x, y, i - before, pm, pq);
                                 continue;
                             }
                             jobs[n].x = x, jobs[n].y = y, jobs[n].index = uint32_t(i);
+                            job_taken[n] = i - before;
                             jobs[n].sampler = Sampler(SampleKey::stream_of(pixel_stream, uint32_t(i)));
                             jobs[n].splats = splats;
                             if (++n == batch) flush();

@@ -1165,6 +1165,16 @@ static SceneEditState& edit_state(SceneFile& sf, const std::string& what) {
     return *sf.edit;
 }
 
+// `text` parsed as the JSON value of key `where` of an edit of `sf`;
+// InputError naming the file and the key where it is not JSON.
+static json parse_edit(const SceneFile& sf, const std::string& where, const std::string& text) {
+    try {
+        return parse_json_text(sf.path, text);
+    } catch (const json::exception& e) {
+        throw InputError(sf.path + ": " + where + ": " + e.what());
+    }
+}
+
 // The scene-file values `fields_json` of material `name` as an Override, and the materials of that name.
 static std::pair<Override, const std::vector<SceneEditState::MaterialRecord>*> material_override(
     SceneFile& sf, const std::string& name, const std::string& fields_json) {
@@ -1173,11 +1183,7 @@ static std::pair<Override, const std::vector<SceneEditState::MaterialRecord>*> m
     const auto it = st.materials.find(name);
     if (it == st.materials.end()) throw ParameterError(sf.path + ": " + where + ": the scene file overrides no material of that name");
     Override o;
-    try {
-        o.fields = parse_json_text(sf.path, fields_json);
-    } catch (const json::exception& e) {
-        throw InputError(sf.path + ": " + where + ": " + e.what());
-    }
+    o.fields = parse_edit(sf, where, fields_json);
     if (!o.fields.is_object()) fail(sf.path, "'" + where + "' must be an object");
     if (o.fields.contains("type")) {
         if (!o.fields["type"].is_string()) fail(sf.path, where + ".type must be a string");
@@ -1223,11 +1229,12 @@ void edit_mesh_transform(SceneFile& sf, size_t index, const std::string& transfo
         throw ParameterError(fmt::format("{}: {}: the scene has {} mesh entries", sf.path, where, st.objects.size()));
     SceneEditState::Object& o = st.objects[index];
     Mat4 xf(1.f);
-    try {
-        const json j = parse_json_text(sf.path, transform_json);
-        if (!j.is_null()) xf = parse_transform(sf.path + ": " + where, j);
-    } catch (const json::exception& e) {
-        throw InputError(sf.path + ": " + where + ": " + e.what());
+    if (const json j = parse_edit(sf, where, transform_json); !j.is_null()) {
+        try {
+            xf = parse_transform(sf.path + ": " + where, j);
+        } catch (const json::exception& e) {
+            throw InputError(sf.path + ": " + where + ": " + e.what());
+        }
     }
     if ((glm::determinant(glm::mat3(xf)) < 0.f) != (glm::determinant(glm::mat3(o.transform)) < 0.f))
         throw ParameterError(sf.path + ": " + where + ": a change between a mirroring and a non-mirroring transform "
@@ -1258,12 +1265,7 @@ void edit_mesh_transform(SceneFile& sf, size_t index, const std::string& transfo
 void edit_environment(SceneFile& sf, const std::string& environment_json) {
     edit_state(sf, "environment");
     std::vector<std::string> inputs;  // the files it reads are among the scene's already
-    json j;
-    try {
-        j = parse_json_text(sf.path, environment_json);
-    } catch (const json::exception& e) {
-        throw InputError(sf.path + ": environment: " + e.what());
-    }
+    const json j = parse_edit(sf, "environment", environment_json);
     sf.scene->set_environment(j.is_null() ? nullptr : parse_environment(sf.path, j, inputs));
 }
 

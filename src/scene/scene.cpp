@@ -89,15 +89,29 @@ SharedGeometry::~SharedGeometry() {
     if (device_) rtcReleaseDevice(static_cast<RTCDevice>(device_));
 }
 
+namespace {
+// Fills the BSDF flags a Material caches (see Material::min_roughness).
+void cache_bsdf_flags(Material& m) {
+    m.min_roughness = m.bsdf->min_roughness();
+    m.pure_delta = m.bsdf->is_pure_delta();
+    m.wo_side_only = m.bsdf->wo_side_only();
+    m.black = m.bsdf->is_black();
+}
+
+// Unit vertex normal `n`, or the face's where `n` is missing or broken;
+// `face` is the triangle's cross product and `face_len` its length.
+Vec3 vertex_normal(const Vec3& n, const Vec3& face, float face_len) {
+    const float nl = glm::length(n);
+    return nl > 0.f && std::isfinite(nl) ? n / nl : face / face_len;
+}
+}  // namespace
+
 Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& camera, const std::string& origin,
              std::shared_ptr<SharedGeometry> shared)
     : materials_(std::move(materials)), camera_(camera) {
     for (Material& mat : materials_) {
         if (!mat.bsdf) throw InputError(origin + ": material '" + mat.name + "' has no BSDF");
-        mat.min_roughness = mat.bsdf->min_roughness();
-        mat.pure_delta = mat.bsdf->is_pure_delta();
-        mat.wo_side_only = mat.bsdf->wo_side_only();
-        mat.black = mat.bsdf->is_black();
+        cache_bsdf_flags(mat);
     }
     // Inconsistent arrays (a caller building the mesh itself) would be read out of bounds.
     const auto sizes = [&] {
@@ -136,12 +150,7 @@ Scene::Scene(TriangleMesh mesh, std::vector<Material> materials, const Camera& c
         const float len = glm::length(c);
         for (int k = 0; k < 3; ++k) {
             m.positions.push_back(p[k]);
-            if (has_n) {
-                const Vec3 n = mesh.normals[3 * t + k];
-                const float nl = glm::length(n);
-                // Missing or broken vertex normals fall back to the face normal.
-                m.normals.push_back(nl > 0.f && std::isfinite(nl) ? n / nl : c / len);
-            }
+            if (has_n) m.normals.push_back(vertex_normal(mesh.normals[3 * t + k], c, len));
             if (has_uv) m.uvs.push_back(is_finite(Vec3(mesh.uvs[3 * t + k], 0.f)) ? mesh.uvs[3 * t + k] : Vec2(0.f));
         }
         m.material_ids.push_back(mesh.material_ids[t]);
@@ -244,11 +253,7 @@ void Scene::set_material(size_t index, std::shared_ptr<Bsdf> bsdf, const Color& 
                                  "': emitted radiance must be finite and not negative");
     Material& m = materials_[index];
     m.bsdf = std::move(bsdf);
-    // The flags the constructor caches for shift mappings' vertex classification.
-    m.min_roughness = m.bsdf->min_roughness();
-    m.pure_delta = m.bsdf->is_pure_delta();
-    m.wo_side_only = m.bsdf->wo_side_only();
-    m.black = m.bsdf->is_black();
+    cache_bsdf_flags(m);
     const bool relight = m.emission != emission;
     m.emission = emission;
     if (relight) build_lights();
@@ -292,12 +297,7 @@ void Scene::set_object_geometry(uint32_t object_id, const std::vector<Vec3>& pos
             const size_t v = 3 * t + k;
             mesh_.positions[v] = p[k];
             verts[3 * v + 0] = p[k].x, verts[3 * v + 1] = p[k].y, verts[3 * v + 2] = p[k].z;
-            if (!normals.empty()) {
-                // As the constructor: missing or broken vertex normals fall back to the face normal.
-                const Vec3 nv = normals[3 * i + k];
-                const float nl = glm::length(nv);
-                mesh_.normals[v] = nl > 0.f && std::isfinite(nl) ? nv / nl : c / len;
-            }
+            if (!normals.empty()) mesh_.normals[v] = vertex_normal(normals[3 * i + k], c, len);
         }
         classify_triangle(t);
         ++i;
