@@ -14,6 +14,8 @@
 #include "gdr/scene/camera.h"
 #include "gdr/scene/delta_light.h"
 #include "gdr/scene/environment.h"
+#include "gdr/scene/light_sample.h"
+#include "gdr/path/host.h"
 
 namespace gdr {
 
@@ -75,39 +77,6 @@ struct SurfaceInteraction {
     }
     /// True if the surface emits light.
     bool is_emitter() const { return !is_black(material->emission); }
-};
-
-/// A point sampled on an emitter, or a direction to the environment.
-struct LightSample {
-    Vec3 p{0.f};         ///< Position on the emitter; for an infinite sample a point beyond the scene along -n (see `infinite`).
-    Vec3 n{0.f};         ///< Emitter's geometric (front) normal; for an infinite sample minus the sampled direction.
-    Color radiance{0.f}; ///< Emitted radiance towards the reference point (0 if it sees the back side).
-    /// Area-measure density including light selection (1/m^2); 0 for an
-    /// infinite sample, which has no area density: code that does not know
-    /// of environments thus drops such samples instead of misweighting them.
-    float pdf_a = 0.f;
-    uint32_t prim = 0;   ///< Emitting triangle (unset for an infinite sample).
-    /// The sample is a direction wi = -n towards the environment (light from
-    /// infinitely far away): its density is pdf_w, and p lies outside the
-    /// scene's bounding sphere along wi from the reference point (from the
-    /// bounds centre for sample_emitter_point()), so that a segment to p is a
-    /// shadow ray towards the environment.
-    bool infinite = false;
-    float pdf_w = 0.f;   ///< Infinite samples: solid-angle density of -n including light selection (1/sr).
-    /// The sample is on a delta light (delta_light.h), which no other
-    /// strategy can reach: its MIS weight against BSDF sampling is 1.
-    /// - Point or spot (`infinite` false): p is the light's position, n the
-    ///   unit direction from it towards the reference point (so that the
-    ///   cosine at the light is 1; along the spot's axis for
-    ///   sample_emitter_point()), radiance its intensity towards the
-    ///   reference point (W/sr) and pdf_a the discrete probability of
-    ///   selecting it (unitless): the area-light estimate L f cos cos_l /
-    ///   (r^2 pdf_a) is then I f cos / (r^2 p_select), the point light's.
-    /// - Directional (`infinite` true): n is the direction light travels,
-    ///   radiance the irradiance E (W/m^2 perpendicular to n) and pdf_w the
-    ///   discrete selection probability: L f cos / pdf_w is E f cos / p_select.
-    bool delta = false;
-    const DeltaLight* delta_light = nullptr;  ///< The delta light sampled (if `delta`); owned by the Scene.
 };
 
 /// True if a triangle has no area a ray can hit (zero, or overflowing float):
@@ -322,6 +291,46 @@ public:
     /// the prefetches only cost instructions.
     bool light_prefetch_pays() const { return light_prefetch_pays_; }
 
+    // The path-space core's host interface (gdr/path/host.h), over the
+    // Scene's own hit records and materials.
+    using Interaction = SurfaceInteraction;  ///< The hit record the core reads.
+    /// light_pdf_a() of the emitting triangle `hit` lies on (1/m^2).
+    float light_pdf_a(const SurfaceInteraction& hit) const { return light_pdf_a(hit.prim); }
+    /// Radiance of the sampled emitter point along w (W/(m^2 sr)): area
+    /// lights are diffuse, and the core asks only on their front side.
+    Color light_radiance(const LightSample& ls, const Vec3& w) const {
+        return (void)w, materials_[mesh_.material_ids[ls.prim]].emission;
+    }
+    /// True if the surface at `hit` emits.
+    bool is_emitter(const SurfaceInteraction& hit) const { return hit.is_emitter(); }
+    /// Radiance the surface at `hit` emits along unit world direction w (W/(m^2 sr)).
+    Color emitted(const SurfaceInteraction& hit, const Vec3& w) const { return hit.emitted(w); }
+    /// Bsdf::sample() of the material at `hit` (local directions).
+    std::optional<BsdfSample> sample_bsdf(const SurfaceInteraction& hit, const Vec3& wo, float u_lobe,
+                                          const Vec2& u) const {
+        return hit.material->bsdf->sample(wo, hit.uv, u_lobe, u);
+    }
+    /// Bsdf::eval_pdf() of the material at `hit` (1/sr each).
+    BsdfEval eval_bsdf(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
+        return hit.material->bsdf->eval_pdf(wo, wi, hit.uv);
+    }
+    /// Bsdf::pdf() of the material at `hit` (1/sr).
+    float pdf_bsdf(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
+        return hit.material->bsdf->pdf(wo, wi, hit.uv);
+    }
+    /// Bsdf::eval_delta() of the material at `hit`.
+    std::optional<BsdfSample> eval_delta(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
+        return hit.material->bsdf->eval_delta(wo, wi, hit.uv);
+    }
+    /// Bsdf::flags() of the material at `hit` (LobeFlags).
+    uint32_t bsdf_flags(const SurfaceInteraction& hit) const { return hit.material->bsdf->flags(); }
+    /// The material at `hit` (its SurfaceTraits fields are cached from its BSDF).
+    const Material& surface(const SurfaceInteraction& hit) const { return *hit.material; }
+    /// gdr::transport_factor() of the material at `hit`.
+    float transport_factor(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi, TransportMode mode) const {
+        return gdr::transport_factor(*hit.material->bsdf, wo, wi, mode);
+    }
+
     const Camera& camera() const { return camera_; }                   ///< The camera.
     const std::vector<Material>& materials() const { return materials_; }  ///< All materials.
     const TriangleMesh& mesh() const { return mesh_; }                    ///< The geometry.
@@ -476,16 +485,7 @@ private:
                        SurfaceInteraction& si) const;
 };
 
-/// Offset of a ray origin along the geometric normal that escapes the surface's
-/// own float rounding (relative to the point's magnitude), scene units.
-inline Vec3 offset_ray_origin(const Vec3& p, const Vec3& ng, const Vec3& dir) {
-    const float scale = 1e-4f * std::max(1.f, std::max(std::abs(p.x), std::max(std::abs(p.y), std::abs(p.z))));
-    return p + (glm::dot(ng, dir) >= 0.f ? scale : -scale) * ng;
-}
-
-/// A ray leaving surface point `si` in unit direction `dir`.
-inline Ray spawn_ray(const SurfaceInteraction& si, const Vec3& dir) {
-    return Ray{offset_ray_origin(si.p, si.ng, dir), dir, 0.f, kInf};
-}
+static_assert(PathHost<Scene>, "gdr's own Scene is a host of the path-space core");
+static_assert(EnvironmentHost<Scene> && PrefetchingHost<Scene>);
 
 }  // namespace gdr
