@@ -59,7 +59,7 @@ void compute_base_terms(const Scene& scene, const CameraPath& x, MisHeuristic he
         const LightConnection& nee = x.nee[k];
         BaseTerms::Vertex& T = t.v[k];
         T.beta = beta;
-        T.emitted = emitted(X);
+        T.emitted = emitted(scene, X);
         if (k >= 2) {
             const Vertex& P = x.v[k - 1];
             T.emit = beta * T.emitted;

@@ -10,40 +10,9 @@
 namespace gdr {
 
 
-double area_density(double pdf_w, const Vertex& from, const Vertex& to) {
-    // An environment vertex is measured by solid angle; from one, pdf_w is
-    // the emission disk's planar density, projected onto `to` (environment.h).
-    if (to.infinite) return pdf_w;
-    if (from.infinite)
-        return to.type == VertexType::Camera ? pdf_w : pdf_w * std::abs(glm::dot(Vec3d(to.si.ng), Vec3d(from.si.ng)));
-    const Vec3d d = Vec3d(to.si.p) - Vec3d(from.si.p);
-    const double dist = glm::length(d);
-    if (!(dist > 0.0)) return 0.0;
-    // The pinhole has no surface: its density takes no cosine.
-    const double cos_at_to = to.type == VertexType::Camera ? 1.0 : glm::dot(Vec3d(to.si.ng), d) / dist;
-    return pdf_w_to_a(pdf_w, dist, cos_at_to);
-}
-
 void trace_camera_subpath(const Scene& scene, const Vec2& film, const Sampler& sampler, const WalkOptions& opt,
                           Subpath& path) {
     trace_camera_subpath(scene, scene.camera().generate_ray(film), sampler, opt, path);
-}
-
-SurfaceInteraction* begin_camera_subpath(const Scene& scene, const Ray& ray, Subpath& path) {
-    path.mode = TransportMode::Radiance;
-    path.v.clear();
-    path.rays = 0;
-    const Camera& cam = scene.camera();
-    Vertex& c = path.v.emplace_back();
-    c.type = VertexType::Camera;
-    c.si.p = ray.o;
-    c.si.ng = cam.forward();
-    c.si.frame = Frame(cam.forward());
-    // The pixel's own sample has We / pdf = 1: the film point is uniform in
-    // the pixel and the measurement is the pixel's mean.
-    c.beta = Color(1.f);
-    c.pdf_fwd = 1.0;
-    return &path.v.emplace_back().si;
 }
 
 void trace_camera_subpath(const Scene& scene, const Ray& ray, const Sampler& sampler, const WalkOptions& opt,

@@ -105,7 +105,7 @@ std::optional<double> richardson(float eps, F&& fd) {
 }
 
 // The offset path seen as a base path of its own pixel (same random numbers).
-CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& offset) {
+CameraPath as_base_path(const Scene& scene, const CameraPath& x, const OffsetPath& y, const Vec2& offset) {
     CameraPath p;
     p.film = x.film + offset;
     p.v.push_back(x.v[0]);  // the same pinhole
@@ -121,7 +121,7 @@ CameraPath as_base_path(const CameraPath& x, const OffsetPath& y, const Vec2& of
         const OffsetRecord& r = y.v[k];
         v.si = r.y.si;
         v.wo = r.y.si.frame.to_world(r.y.wo);
-        if (nee.valid) nee.measure(v.si, r.y.wo);  // the same light point, seen from y_k
+        if (nee.valid) nee.measure(scene, v.si, r.y.wo);  // the same light point, seen from y_k
         v.bs = BsdfSample{};
         if (k + 1 < y.size()) {
             v.bs = step_as_sample(r.step, r.y.wo, x.v[k].bs);
@@ -198,7 +198,7 @@ ShiftReport validate_shift(const Scene& scene, const Shift& shift, const ShiftCo
 
         if (y.size() != x.size()) continue;
         ++rep.complete;
-        const CameraPath yb = as_base_path(x, y, right);
+        const CameraPath yb = as_base_path(scene, x, y, right);
         shift_camera_path(scene, shift, config, yb, -right, back);
         ++rep.reverse_checked;
         if (back.size() != x.size()) {

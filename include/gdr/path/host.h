@@ -57,12 +57,14 @@ concept SurfaceTraits = requires(const T& m) {
 /// through film point `film` (pixel units, (0,0) the top-left corner of the
 /// top-left pixel; unit direction); direction_pdf(w) is the density of a
 /// primary ray along unit world direction w with film points uniform per
-/// pixel (1/sr, 0 outside the film); width() and height() the film's
-/// resolution in pixels.
+/// pixel (1/sr, 0 outside the film); forward() the unit viewing direction
+/// (the camera vertex's normal); width() and height() the film's resolution
+/// in pixels.
 template <class C>
 concept CameraModel = requires(const C& c, const Vec2& film, const Vec3& w) {
     { c.generate_ray(film) } -> std::same_as<Ray>;
     { c.direction_pdf(w) } -> std::convertible_to<float>;
+    { c.forward() } -> std::convertible_to<Vec3>;
     { c.width() } -> std::convertible_to<int>;
     { c.height() } -> std::convertible_to<int>;
 };

@@ -25,10 +25,11 @@ enum class VertexType : uint8_t {
     Surface,  ///< A scattering point found by a walk.
 };
 
-/// One vertex of a subpath.
-struct Vertex {
+/// One vertex of a subpath on host H (gdr/path/host.h; Vertex on gdr's Scene).
+template <class H>
+struct BasicVertex {
     VertexType type = VertexType::Surface;
-    SurfaceInteraction si;  ///< The point; a light vertex has p, ng, frame and prim (no material); a camera p and ng.
+    typename H::Interaction si;  ///< The point; a light vertex has p, ng, frame and prim (no material); a camera p and ng.
     Vec3 wo{0.f};           ///< Unit world direction towards the previous vertex of its subpath (0 at the start).
     /// Throughput of the subpath up to and including the arrival here: We/pdf
     /// or Le/pdf at the start (a light vertex's Le/pdf_a, in W/(m^2 sr)
@@ -68,21 +69,27 @@ struct Vertex {
     bool scattered() const { return bs.pdf > 0.f; }
 
     /// True for a vertex a connection can join: it has a non-delta
-    /// scattering (or is an endpoint) and is not a black surface.
+    /// scattering (or is an endpoint) and is not a black surface (gdr's
+    /// Scene, whose hit records name their material).
     bool connectible() const {
         if (type != VertexType::Surface) return true;
         return !si.material->pure_delta && !si.material->black;
     }
 };
+/// A vertex of a subpath on gdr's own Scene.
+using Vertex = BasicVertex<Scene>;
 
-/// A camera or light subpath: v[0] is its endpoint (camera or light vertex).
-struct Subpath {
+/// A camera or light subpath on host H: v[0] is its endpoint (camera or light vertex).
+template <class H>
+struct BasicSubpath {
     TransportMode mode = TransportMode::Radiance;  ///< Radiance for camera subpaths, importance for light subpaths.
-    std::vector<Vertex> v;  ///< Vertices in walk order.
+    std::vector<BasicVertex<H>> v;  ///< Vertices in walk order.
     uint64_t rays = 0;      ///< Rays cast to build it.
     /// Number of vertices, endpoint included.
     int size() const { return int(v.size()); }
 };
+/// A subpath on gdr's own Scene.
+using Subpath = BasicSubpath<Scene>;
 
 /// Limits of a subpath walk.
 struct WalkOptions {
@@ -135,7 +142,20 @@ double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const
 /// Area density (1/m^2) at vertex `to` of solid-angle density pdf_w (1/sr)
 /// of the direction from `from`: pdf_w_to_a with the cosine at `to`'s
 /// geometric normal (none at the camera).
-double area_density(double pdf_w, const Vertex& from, const Vertex& to);
+template <class H>
+double area_density(double pdf_w, const BasicVertex<H>& from, const BasicVertex<H>& to) {
+    // An environment vertex is measured by solid angle; from one, pdf_w is
+    // the emission disk's planar density, projected onto `to` (environment.h).
+    if (to.infinite) return pdf_w;
+    if (from.infinite)
+        return to.type == VertexType::Camera ? pdf_w : pdf_w * std::abs(glm::dot(Vec3d(to.si.ng), Vec3d(from.si.ng)));
+    const Vec3d d = Vec3d(to.si.p) - Vec3d(from.si.p);
+    const double dist = glm::length(d);
+    if (!(dist > 0.0)) return 0.0;
+    // The pinhole has no surface: its density takes no cosine.
+    const double cos_at_to = to.type == VertexType::Camera ? 1.0 : glm::dot(Vec3d(to.si.ng), d) / dist;
+    return pdf_w_to_a(pdf_w, dist, cos_at_to);
+}
 /// Area density (1/m^2) with which a light subpath would start at emitter
 /// point `v` (power and area selection; for an environment vertex the
 /// solid-angle density of its direction, selection included); 0 where it does not emit.

@@ -59,9 +59,10 @@ struct LightConnection {
     float pdf_bsdf = 0.f;     ///< BSDF sampling density of wi at the vertex given wo (1/sr; 0 if dist is 0 or the light is a delta light).
 
     /// Fills dist, wi, pdf_w, f and pdf_bsdf for this sample taken at surface
-    /// point `at` entered from local direction `wo`; call again whenever
-    /// `light`, `at` or `wo` changes.
-    void measure(const SurfaceInteraction& at, const Vec3& wo) {
+    /// point `at` of `host` entered from local direction `wo`; call again
+    /// whenever `light`, `at` or `wo` changes.
+    template <class H>
+    void measure(const H& host, const typename H::Interaction& at, const Vec3& wo) {
         const Vec3 d = light.p - at.p;
         dist = glm::length(d);
         if (!(dist > 0.f)) {
@@ -74,7 +75,7 @@ struct LightConnection {
         wi = at.frame.to_local(w);
         pdf_w = light.infinite ? double(light.pdf_w)
                                : pdf_a_to_w(double(light.pdf_a), double(dist), double(glm::dot(light.n, w)));
-        const BsdfEval fe = at.material->bsdf->eval_pdf(wo, wi, at.uv);
+        const BsdfEval fe = host.eval_bsdf(at, wo, wi);
         // No BSDF sample reaches a delta light: light sampling is its only strategy.
         f = fe.f, pdf_bsdf = light.delta ? 0.f : fe.pdf;
     }

@@ -14,6 +14,7 @@
 #include "gdr/core/sampler.h"
 #include "gdr/path/dims.h"
 #include "gdr/path/environment.h"
+#include "gdr/path/host.h"
 #include "gdr/path/subpath.h"
 #include "gdr/path/vertex.h"
 
@@ -22,7 +23,8 @@ namespace gdr {
 /// A walk hook that does nothing: the walk only records its vertices.
 struct RecordVertices {
     /// Called with the subpath whose last vertex is complete.
-    void operator()(Subpath&) const {}
+    template <class H>
+    void operator()(BasicSubpath<H>&) const {}
 };
 
 /// Veach's shading-normal correction of importance transport, |wo.ns|
@@ -30,7 +32,8 @@ struct RecordVertices {
 /// ("Robust Monte Carlo Methods for Light Transport Simulation", 1997,
 /// section 5.3): light subpaths then see the adjoint of the BSDF the camera
 /// side sees through shading normals. 1 for radiance transport.
-inline float shading_correction(const SurfaceInteraction& si, const Vec3& wo, const Vec3& wi, TransportMode mode) {
+template <class I>
+float shading_correction(const I& si, const Vec3& wo, const Vec3& wi, TransportMode mode) {
     if (mode == TransportMode::Radiance) return 1.f;
     const float num = std::abs(glm::dot(wo, si.frame.n)) * std::abs(glm::dot(wi, si.ng));
     const float den = std::abs(glm::dot(wo, si.ng)) * std::abs(glm::dot(wi, si.frame.n));
@@ -56,19 +59,23 @@ constexpr uint32_t vertex_block(TransportMode mode, int k) {
 /// point, wo, beta, pdf_fwd and its numbers, not yet the direction sampled
 /// there, bs and delta, which are written after it), and must not add
 /// vertices.
-template <class OnVertex>
-void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf_w, const Sampler& sampler,
-                  const WalkOptions& opt, Subpath& path, OnVertex&& on_vertex, bool first_recorded = false,
+template <PathHost H, class OnVertex>
+void walk_subpath(const H& scene, Ray ray, Color beta, Color rel, double pdf_w, const Sampler& sampler,
+                  const WalkOptions& opt, BasicSubpath<H>& path, OnVertex&& on_vertex, bool first_recorded = false,
                   bool first_hit = false) {
+    using Vertex = BasicVertex<H>;
     const TransportMode mode = path.mode;
-    const bool prefetch = opt.prefetch_light && mode == TransportMode::Radiance && scene.light_prefetch_pays();
+    bool prefetch = false;
+    if constexpr (PrefetchingHost<H>)
+        prefetch = opt.prefetch_light && mode == TransportMode::Radiance && scene.light_prefetch_pays();
     // A vertex's emitter and lobe numbers (one hash) are drawn before the ray
     // that reaches it, so that the emitter they select starts loading during
     // the traversal: on scenes with many emitters the light sample then does
     // not wait for memory.
     Vec2 u_sel = sampler.at2(vertex_block(mode, 1) + dims::kLightSelect);
     static_assert(dims::kBsdfLobe == dims::kLightSelect + 1, "the emitter and lobe numbers are one pair");
-    if (prefetch) scene.prefetch_light(u_sel.x);
+    if constexpr (PrefetchingHost<H>)
+        if (prefetch) scene.prefetch_light(u_sel.x);
     for (int k = 1; opt.max_vertices < 0 || k <= opt.max_vertices; ++k) {
         ++path.rays;
         const bool hit = k == 1 && first_recorded ? first_hit
@@ -77,10 +84,11 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
             path.v.pop_back();
             // A camera walk that leaves the scene ends on the environment, if
             // there is one (path/environment.h); the hook sees that vertex too.
-            if (mode == TransportMode::Radiance && scene.environment()) [[unlikely]] {
-                append_escape_vertex(scene, ray, beta, pdf_w, path);
-                on_vertex(path);
-            }
+            if constexpr (EnvironmentHost<H>)
+                if (mode == TransportMode::Radiance && scene.environment()) [[unlikely]] {
+                    append_escape_vertex(scene, ray, beta, pdf_w, path);
+                    on_vertex(path);
+                }
             return;
         }
         Vertex& x = path.v.back();
@@ -90,15 +98,15 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         x.beta = beta;
         if (prev.infinite) [[unlikely]] {
             x.pdf_fwd = area_density(pdf_w, prev, x);  // the emission disk's density (path/environment.h)
-        } else if (opt.forward_densities || x.si.is_emitter()) {
+        } else if (opt.forward_densities || scene.is_emitter(x.si)) {
             // area_density() in float: distance and cosine of this segment.
             const Vec3 d = x.si.p - prev.si.p;
             const float dist2 = glm::dot(d, d);
             x.pdf_fwd = dist2 > 0.f ? pdf_w * double(std::abs(glm::dot(x.si.ng, d)) / (dist2 * std::sqrt(dist2))) : 0.0;
         }
         x.u_light = u_sel.x, x.u_lobe = u_sel.y;
-        const SurfaceInteraction& si = x.si;
-        if ((opt.max_vertices >= 0 && k == opt.max_vertices) || si.material->black) {
+        const typename H::Interaction& si = x.si;
+        if ((opt.max_vertices >= 0 && k == opt.max_vertices) || scene.surface(si).black) {
             on_vertex(path);
             return;
         }
@@ -107,11 +115,10 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         // Numbers are drawn only where they are read: classification only
         // for probabilistic classification.
         if (opt.classify_numbers) x.u_classify = sampler.at(b + dims::kClassify);
-        const Bsdf& bsdf = *si.material->bsdf;
         const Vec3 wo = si.frame.to_local(x.wo);
         // The continuation is sampled before the hook's light sample: the two
         // are independent, so their dependency chains overlap.
-        const std::optional<BsdfSample> bs = bsdf.sample(wo, si.uv, x.u_lobe, x.u_dir);
+        const std::optional<BsdfSample> bs = scene.sample_bsdf(si, wo, x.u_lobe, x.u_dir);
         on_vertex(path);
         if (!bs || !(bs->pdf > 0.f) || is_black(bs->f)) return;
         // Copied after the hook: the BSDF wrote the sample field by field,
@@ -120,7 +127,7 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         x.bs = *bs;
         x.delta = bs->is_delta();
         const Vec3 wi_world = si.frame.to_world(bs->wi);
-        const Color step = bs->f * (transport_factor(bsdf, wo, bs->wi, mode) * abs_cos_theta(bs->wi) / bs->pdf *
+        const Color step = bs->f * (host_transport_factor(scene, si, wo, bs->wi, mode) * abs_cos_theta(bs->wi) / bs->pdf *
                                     shading_correction(si, x.wo, wi_world, mode));
         beta *= step, rel *= step;
         // A delta lobe has no density in the area measure: Veach's remapping
@@ -128,7 +135,7 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         // strategies that would connect there.
         pdf_w = bs->is_delta() ? 0.0 : double(bs->pdf);
         if (opt.reverse_densities) {
-            const double pdf_rev_w = bs->is_delta() ? 0.0 : double(bsdf.pdf(bs->wi, wo, si.uv));
+            const double pdf_rev_w = bs->is_delta() ? 0.0 : double(scene.pdf_bsdf(si, bs->wi, wo));
             Vertex& before = path.v[path.v.size() - 2];
             before.pdf_rev = area_density(pdf_rev_w, x, before);
         }
@@ -141,7 +148,8 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
         if (is_black(beta)) return;
         detail::assign_in_place(ray, [&] { return spawn_ray(si, wi_world); });
         u_sel = sampler.at2(vertex_block(mode, k + 1) + dims::kLightSelect);
-        if (prefetch) scene.prefetch_light(u_sel.x);
+        if constexpr (PrefetchingHost<H>)
+            if (prefetch) scene.prefetch_light(u_sel.x);
     }
 }
 
@@ -150,6 +158,22 @@ void walk_subpath(const Scene& scene, Ray ray, Color beta, Color rel, double pdf
 /// hit, whose address is returned so that the caller traces the ray into it
 /// (e.g. in one packet with other rays), then walk_subpath() with
 /// first_recorded = true continues.
-SurfaceInteraction* begin_camera_subpath(const Scene& scene, const Ray& ray, Subpath& path);
+template <PathHost H>
+typename H::Interaction* begin_camera_subpath(const H& scene, const Ray& ray, BasicSubpath<H>& path) {
+    path.mode = TransportMode::Radiance;
+    path.v.clear();
+    path.rays = 0;
+    const auto& cam = scene.camera();
+    BasicVertex<H>& c = path.v.emplace_back();
+    c.type = VertexType::Camera;
+    c.si.p = ray.o;
+    c.si.ng = cam.forward();
+    c.si.frame = Frame(cam.forward());
+    // The pixel's own sample has We / pdf = 1: the film point is uniform in
+    // the pixel and the measurement is the pixel's mean.
+    c.beta = Color(1.f);
+    c.pdf_fwd = 1.0;
+    return &path.v.emplace_back().si;
+}
 
 }  // namespace gdr

@@ -13,7 +13,8 @@ namespace gdr {
 struct HalfVectorShift {
     static constexpr std::string_view kName = "half-vector";
     /// Shifts vertex in.k.
-    ShiftStep step(const ShiftStepInput& in) const { return shift::reconnect_or(in, shift::half_vector); }
+    template <class H>
+    ShiftStep step(const BasicShiftStepInput<H>& in) const { return shift::reconnect_or(in, shift::half_vector<H>); }
 };
 static_assert(ShiftMapping<HalfVectorShift>);
 

@@ -11,7 +11,8 @@ namespace gdr {
 struct ReconnectionShift {
     static constexpr std::string_view kName = "reconnection";
     /// Shifts vertex in.k (only the first vertex is ever shifted; later ones are shared).
-    ShiftStep step(const ShiftStepInput& in) const {
+    template <class H>
+    ShiftStep step(const BasicShiftStepInput<H>& in) const {
         if (in.k == 1 && shift::can_reconnect(in)) return shift::reconnect(in);
         return ShiftStep{};
     }

@@ -10,7 +10,8 @@ namespace gdr {
 struct ReplayShift {
     static constexpr std::string_view kName = "replay";
     /// Shifts vertex in.k.
-    ShiftStep step(const ShiftStepInput& in) const {
+    template <class H>
+    ShiftStep step(const BasicShiftStepInput<H>& in) const {
         if (!shift::base_has_next(in)) return ShiftStep{};
         return shift::replay(in);
     }
@@ -22,7 +23,8 @@ static_assert(ShiftMapping<ReplayShift>);
 struct ReplayReconnectShift {
     static constexpr std::string_view kName = "replay-reconnect";
     /// Shifts vertex in.k.
-    ShiftStep step(const ShiftStepInput& in) const { return shift::reconnect_or(in, shift::replay); }
+    template <class H>
+    ShiftStep step(const BasicShiftStepInput<H>& in) const { return shift::reconnect_or(in, shift::replay<H>); }
 };
 static_assert(ShiftMapping<ReplayReconnectShift>);
 

@@ -41,9 +41,10 @@ inline bool is_connectable(float roughness, float u, const ShiftConfig& c) {
     return u < std::clamp(t, 0.f, 1.f);
 }
 
-/// The offset path's current vertex y_k.
-struct OffsetVertex {
-    SurfaceInteraction si;       ///< y_k (equals x_k once the offset has reconnected).
+/// The offset path's current vertex y_k, on host H (gdr/path/host.h).
+template <class H>
+struct BasicOffsetVertex {
+    typename H::Interaction si;  ///< y_k (equals x_k once the offset has reconnected).
     Vec3 wo{0.f};                ///< Local direction from y_k towards y_{k-1}.
     Color emitted{0.f};          ///< Radiance emitted from y_k towards y_{k-1}.
     bool on_base = false;        ///< y_k is the base vertex x_k (reconnected just before k).
@@ -51,14 +52,18 @@ struct OffsetVertex {
     /// -si.ng (environment.h's convention), and the offset ends here.
     bool infinite = false;
 };
+/// An offset vertex on gdr's own Scene.
+using OffsetVertex = BasicOffsetVertex<Scene>;
 
-/// Everything a shift step may look at: the base path, the current depth and the offset's vertex.
-struct ShiftStepInput {
-    const Scene& scene;        ///< For visibility and tracing.
+/// Everything a shift step may look at: the base path, the current depth
+/// and the offset's vertex, on host H.
+template <class H>
+struct BasicShiftStepInput {
+    const H& scene;            ///< For visibility, tracing and BSDF values.
     const ShiftConfig& config; ///< Classification settings.
-    const CameraPath& base;    ///< The recorded base path.
+    const BasicCameraPath<H>& base;  ///< The recorded base path.
     size_t k;                  ///< Index of the current base vertex x_k in base.v (1 = the first hit; v[0] is the camera).
-    const OffsetVertex& y;     ///< The offset's vertex at the same depth.
+    const BasicOffsetVertex<H>& y;   ///< The offset's vertex at the same depth.
     /// The caller will test a reconnection's segment y_k -> x_{k+1} itself
     /// (batched with other offsets' segments): a step may then skip that test
     /// and set ShiftStep::visibility_deferred. Steps that ignore this flag and
@@ -92,51 +97,64 @@ struct ShiftStep {
     /// caller tests it and turns the step into Fail if it is blocked.
     bool visibility_deferred = false;
 };
+/// A shift step's input on gdr's own Scene.
+using ShiftStepInput = BasicShiftStepInput<Scene>;
 
-/// A shift mapping: a type with a name and a step() that shifts one vertex.
-template <typename S>
-concept ShiftMapping = requires(const S& s, const ShiftStepInput& in) {
+/// A shift mapping on host H: a type with a name and a step() that shifts
+/// one vertex of H's paths. The built-in shifts' step() is a template, so
+/// they are shift mappings on every host.
+template <typename S, typename H>
+concept ShiftMappingOn = requires(const S& s, const BasicShiftStepInput<H>& in) {
     { S::kName } -> std::convertible_to<std::string_view>;
     { s.step(in) } -> std::same_as<ShiftStep>;
 };
+/// A shift mapping on gdr's own Scene.
+template <typename S>
+concept ShiftMapping = ShiftMappingOn<S, Scene>;
 
-/// Type-erased shift mapping, as stored in the registry and used by integrators.
-class Shift {
+/// Type-erased shift mapping on host H, as stored in a registry and used by integrators.
+template <class H>
+class BasicShift {
 public:
-    virtual ~Shift() = default;
+    virtual ~BasicShift() = default;
     /// Shifts the base's scattering at vertex in.k onto the offset vertex in.y.
-    virtual ShiftStep step(const ShiftStepInput& in) const = 0;
+    virtual ShiftStep step(const BasicShiftStepInput<H>& in) const = 0;
     /// Registered name.
     virtual std::string name() const = 0;
 };
+/// A type-erased shift mapping on gdr's own Scene.
+using Shift = BasicShift<Scene>;
 
-/// Wraps a ShiftMapping value as a Shift.
-template <ShiftMapping S>
-class ShiftModel final : public Shift {
+/// Wraps a shift mapping value S as a BasicShift on host H.
+template <class S, class H = Scene>
+    requires ShiftMappingOn<S, H>
+class ShiftModel final : public BasicShift<H> {
 public:
     explicit ShiftModel(S s) : s_(std::move(s)) {}
-    ShiftStep step(const ShiftStepInput& in) const override { return s_.step(in); }
+    ShiftStep step(const BasicShiftStepInput<H>& in) const override { return s_.step(in); }
     std::string name() const override { return std::string(S::kName); }
 
 private:
     S s_;
 };
 
-/// Makes a heap-allocated Shift from a ShiftMapping value.
-template <ShiftMapping S>
-std::unique_ptr<Shift> make_shift(S s) {
-    return std::make_unique<ShiftModel<S>>(std::move(s));
+/// Makes a heap-allocated shift on host H (gdr's Scene by default) from a shift mapping value.
+template <class H = Scene, class S>
+    requires ShiftMappingOn<S, H>
+std::unique_ptr<BasicShift<H>> make_shift(S s) {
+    return std::make_unique<ShiftModel<S, H>>(std::move(s));
 }
 
 /// Registers shift mapping S under its S::kName with a one-line description:
 /// made from the render's shift parameters if S is constructible from
 /// `const Params&` (every key it does not read is then refused), else
 /// default-constructed (any parameter is refused).
-template <ShiftMapping S>
-void register_shift(Registry<Shift>& registry, const std::string& description) {
-    registry.add(std::string(S::kName), description, [](const Params& p) -> std::unique_ptr<Shift> {
-        if constexpr (std::is_constructible_v<S, const Params&>) return make_shift(S(p));
-        else return (void)p, make_shift(S{});
+template <class S, class H>
+    requires ShiftMappingOn<S, H>
+void register_shift(Registry<BasicShift<H>>& registry, const std::string& description) {
+    registry.add(std::string(S::kName), description, [](const Params& p) -> std::unique_ptr<BasicShift<H>> {
+        if constexpr (std::is_constructible_v<S, const Params&>) return make_shift<H>(S(p));
+        else return (void)p, make_shift<H>(S{});
     });
 }
 
