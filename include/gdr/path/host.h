@@ -56,8 +56,10 @@ concept SurfaceTraits = requires(const T& m) {
 /// The camera as the core reads it: generate_ray(film) is the primary ray
 /// through film point `film` (pixel units, (0,0) the top-left corner of the
 /// top-left pixel; unit direction); direction_pdf(w) is the density of a
-/// primary ray along unit world direction w with film points uniform per
-/// pixel (1/sr, 0 outside the film); forward() the unit viewing direction
+/// primary ray along unit world direction w with film points uniform over
+/// the whole film, 1 / (A cos^3 theta) for a pinhole whose film has area A
+/// at unit distance (1/sr, 0 outside the film; bidirectional MIS reads it
+/// as the camera vertex's density); forward() the unit viewing direction
 /// (the camera vertex's normal); width() and height() the film's resolution
 /// in pixels.
 template <class C>

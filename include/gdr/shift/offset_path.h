@@ -12,8 +12,9 @@ namespace gdr {
 
 /// The offset path at one depth k: its vertex, its shifted light connection,
 /// and how it leaves towards depth k+1.
-struct OffsetRecord {
-    OffsetVertex y;                 ///< y_k.
+template <class H>
+struct BasicOffsetRecord {
+    BasicOffsetVertex<H> y;         ///< y_k.
     bool nee = false;               ///< The base's light sample at x_k was shifted to y_k.
     Color nee_f{0.f};               ///< BSDF value at y_k towards the light point (1/sr).
     float nee_cos = 0.f;            ///< |cos| at y_k towards the light point.
@@ -23,13 +24,16 @@ struct OffsetRecord {
     float nee_pdf_bsdf = 0.f;       ///< Offset's own BSDF density of that direction (1/sr).
     ShiftStep step;                 ///< How the offset leaves y_k (kind Fail if it does not).
 };
+/// An offset record on gdr's own Scene.
+using OffsetRecord = BasicOffsetRecord<Scene>;
 
 /// An offset path y = T(x). It ends where the base ends or where a step failed
 /// (f(y) = 0 beyond). Once y has reconnected and its incoming direction at a
 /// shared vertex equals the base's, it is the base from there on: those
 /// vertices get no records (merged_from marks where they begin).
-struct OffsetPath {
-    std::vector<OffsetRecord> v;          ///< Records of the offset's own vertices; v[k] pairs with base.v[k] (v[0]: the camera, shared).
+template <class H>
+struct BasicOffsetPath {
+    std::vector<BasicOffsetRecord<H>> v;          ///< Records of the offset's own vertices; v[k] pairs with base.v[k] (v[0]: the camera, shared).
     size_t length = 0;                    ///< Number of offset vertices, camera and shared suffix included (0: no offset path).
     size_t merged_from = size_t(-1);      ///< First depth where y equals x; no records from there on.
     /// Depth k (merged_from - 1) at which y reconnected onto x_k and takes
@@ -43,10 +47,33 @@ struct OffsetPath {
     /// True if depth k belongs to the shared suffix.
     bool merged(size_t k) const { return k >= merged_from; }
 };
+/// An offset path on gdr's own Scene.
+using OffsetPath = BasicOffsetPath<Scene>;
 
 /// Shifts `base` to the pixel displaced by `pixel_offset` (pixel units, e.g. (1,0))
 /// with `shift`, tracing the offset's own rays where needed.
-void shift_camera_path(const Scene& scene, const Shift& shift, const ShiftConfig& config, const CameraPath& base,
-                       const Vec2& pixel_offset, OffsetPath& out);
+template <PathHost H>
+void shift_camera_path(const H& scene, const BasicShift<H>& shift, const ShiftConfig& config,
+                       const BasicCameraPath<H>& base, const Vec2& pixel_offset, BasicOffsetPath<H>& out);
+
+}  // namespace gdr
+
+#include "gdr/shift/detail/offset_walk.h"
+
+namespace gdr {
+
+template <PathHost H>
+void shift_camera_path(const H& scene, const BasicShift<H>& shift, const ShiftConfig& config,
+                       const BasicCameraPath<H>& base, const Vec2& pixel_offset, BasicOffsetPath<H>& out) {
+    detail::reset(out);
+    if (base.size() <= 1) return;
+    Ray ray;
+    typename H::Interaction* si = detail::start_offset(scene, base.film, pixel_offset, out, ray);
+    detail::complete_offset(scene, shift, config, base, ray, scene.intersect(ray, *si), out);
+}
+
+// gdr's own Scene's is compiled once, in the library.
+extern template void shift_camera_path(const Scene&, const Shift&, const ShiftConfig&, const CameraPath&, const Vec2&,
+                                       OffsetPath&);
 
 }  // namespace gdr
