@@ -4,6 +4,7 @@
 #include "gdr/core/error.h"
 #include "gdr/detail/in_place.h"
 #include "gdr/path/trace.h"
+#include "gdr/shift/builtin.h"
 #include "gdr/shift/half_vector.h"
 #include "gdr/shift/reconnection.h"
 #include "gdr/shift/replay.h"
@@ -116,12 +117,7 @@ void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const
     shift_from_camera_packet(scene, shift, config, base, packet, out);
 }
 
-void register_builtin_shifts(Registry<Shift>& r) {
-    register_shift<HalfVectorShift>(r, "reconnection where possible, half-vector copy through glossy/specular vertices (PI)");
-    register_shift<ReconnectionShift>(r, "reconnect at the first vertex, fail otherwise");
-    register_shift<ReplayShift>(r, "random-number replay at every vertex");
-    register_shift<ReplayReconnectShift>(r, "replay until connectable, then reconnect (survey's simple shift)");
-}
+void register_builtin_shifts(Registry<Shift>& r) { register_builtin_shifts_on(r); }
 
 std::vector<std::unique_ptr<Shift>> make_shifts(const Params& p, const std::vector<std::string>& names,
                                                 std::string& stored) {
