@@ -67,6 +67,9 @@ public:
     /// Eye, point looked at, approximate up, vertical field of view (degrees), resolution (pixels).
     PinholeCamera(Vec3 eye, Vec3 target, Vec3 up, float fov_y_deg, int w, int h) : eye_(eye), w_(w), h_(h) {
         if (w <= 0 || h <= 0) throw std::invalid_argument("toy camera: resolution must be positive");
+        if (!(fov_y_deg > 0.f && fov_y_deg < 180.f)) throw std::invalid_argument("toy camera: fov must be in (0, 180)");
+        if (!(glm::length(glm::cross(target - eye, up)) > 0.f))
+            throw std::invalid_argument("toy camera: eye and target coincide, or up is along the view");
         fwd_ = glm::normalize(target - eye);
         right_ = glm::normalize(glm::cross(fwd_, up));
         up_ = glm::cross(right_, fwd_);
@@ -134,7 +137,8 @@ public:
         const Vec3 x = glm::cross(e1, e2);
         prims_.push_back({false, c, e1, e2, glm::normalize(x), 0.f, glm::length(x), mat});
     }
-    /// Sets the camera and collects the lights and bounds; call after the last primitive.
+    /// Sets the camera and collects the lights and bounds; call after the last primitive (the
+    /// queries below read what it collects). Throws on an emitting sphere.
     void finish(const PinholeCamera& cam) {
         camera_ = cam, lights_.clear(), light_cdf_.clear(), light_area_ = 0.f;
         Vec3 lo(gdr::kInf), hi(-gdr::kInf);
@@ -213,7 +217,7 @@ public:
         } else if (m.kind == Kind::Glossy) {  // D(m) cos(m) sampling of the half vector (Walter 2007, eq. 35)
             const float tan2 = m.alpha * m.alpha * u.x / (1.f - u.x), phi = 2.f * kPi * u.y;
             const float cz = 1.f / std::sqrt(1.f + tan2), sz = std::sqrt(std::max(0.f, 1.f - cz * cz));
-            const Vec3 h = side * Vec3(sz * std::cos(phi), sz * std::sin(phi), cz);
+            const Vec3 h(sz * std::cos(phi), sz * std::sin(phi), side * cz);
             s.wi = gdr::reflect(wo, h);
             s.lobe |= gdr::kGlossy, s.roughness = m.alpha;
         } else {
@@ -255,18 +259,18 @@ public:
             default: return gdr::kReflection | gdr::kTransmission | gdr::kSpecular;
         }
     }
-    /// The material's traits; only Lambertian reflection depends on wo through its side alone.
+    /// The material's traits; only Lambertian reflection depends on wo through its side alone, and
+    /// only Lambertian and mirror reflection of albedo 0 are black (Schlick's glossy Fresnel is not).
     Traits surface(const Hit& hit) const {
         const Material& m = materials_[hit.material];
         const bool delta = m.kind == Kind::Mirror || m.kind == Kind::Glass;
-        return {m.kind != Kind::Glass && gdr::max_component(m.albedo) <= 0.f, delta,
+        const bool scaled = m.kind == Kind::Diffuse || m.kind == Kind::Mirror;  // f proportional to albedo
+        return {scaled && gdr::max_component(m.albedo) <= 0.f, delta,
                 delta ? 0.f : m.kind == Kind::Glossy ? m.alpha : 1.f, m.kind == Kind::Diffuse};
     }
     const PinholeCamera& camera() const { return camera_; }  ///< The camera.
     float bounding_radius() const { return radius_; }        ///< Half the diagonal of the bounds (scene units).
 
-    const std::vector<Material>& materials() const { return materials_; }   ///< All materials.
-    const std::vector<Primitive>& primitives() const { return prims_; }    ///< All primitives.
 
 private:
     // Ray-primitive test within (ray.tmin, tmax): t of the hit and the parallelogram's uv.

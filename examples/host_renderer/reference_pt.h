@@ -45,7 +45,7 @@ Color radiance(const H& host, const Vec2& film, gdr::Sampler& sampler, const PtO
             }
             L += beta * host.emitted(hit, wo_world) * w;
         }
-        const auto traits = host.surface(hit);
+        const auto& traits = host.surface(hit);
         if (traits.black || segments == opt.max_depth) break;
         const Vec3 wo = hit.frame.to_local(wo_world);
         const float u_select = sampler.next1d();
