@@ -103,6 +103,21 @@ TEST_CASE("host example: intersection and visibility on the Cornell scene", "[ho
     CHECK(gdr::is_black(scene.light_radiance(ls, Vec3(0.f, 1.f, 0.f))));  // its back
 }
 
+TEST_CASE("host example: the toy scene refuses degenerate input", "[host]") {
+    toy::Renderer r;
+    const int lamp = r.add({toy::Kind::Diffuse, Color(0.f), 1.f, 1.f, Color(1.f)});
+    CHECK_THROWS_WITH(r.quad(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(2.f, 0.f, 0.f), lamp), Catch::Contains("parallel"));
+    CHECK_THROWS_WITH(r.sphere(Vec3(0.f), 0.f, lamp), Catch::Contains("radius"));
+    r.sphere(Vec3(0.f), 1.f, lamp);
+    const toy::PinholeCamera cam(Vec3(0.f, 0.f, 5.f), Vec3(0.f), Vec3(0.f, 1.f, 0.f), 40.f, 8, 8);
+    CHECK_THROWS_WITH(r.finish(cam), Catch::Contains("emitting sphere"));
+    toy::Renderer s;
+    s.quad(Vec3(0.f), Vec3(1.f, 0.f, 0.f), Vec3(0.f, 1.f, 0.f), 3);
+    CHECK_THROWS_WITH(s.finish(cam), Catch::Contains("primitive 0 names no material"));
+    CHECK_THROWS_WITH(toy::PinholeCamera(Vec3(0.f), Vec3(0.f, 1.f, 0.f), Vec3(0.f, 1.f, 0.f), 40.f, 8, 8),
+                      Catch::Contains("up is along the view"));
+}
+
 TEST_CASE("host example: BSDF samples agree with eval_bsdf, pdf_bsdf and eval_delta", "[host]") {
     const Materials m;
     for (int mat : {m.diffuse, m.mirror, m.glass, m.glossy2, m.glossy5})

@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <optional>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 #include "gdr/path/host.h"
@@ -130,11 +131,15 @@ public:
     /// Adds a material and returns its index.
     int add(const Material& m) { return materials_.push_back(m), int(materials_.size()) - 1; }
     /// Adds a sphere (centre, radius in scene units, material index).
-    void sphere(Vec3 c, float r, int mat) { prims_.push_back({true, c, {}, {}, {}, r, 4.f * kPi * r * r, mat}); }
+    void sphere(Vec3 c, float r, int mat) {
+        if (!(r > 0.f)) throw std::invalid_argument("toy renderer: sphere radius must be positive");
+        prims_.push_back({true, c, {}, {}, {}, r, 4.f * kPi * r * r, mat});
+    }
     /// Adds a parallelogram corner + [0,1]^2 of edges (e1, e2), front along e1 x e2; an emitting
     /// material makes it an area light.
     void quad(Vec3 c, Vec3 e1, Vec3 e2, int mat) {
         const Vec3 x = glm::cross(e1, e2);
+        if (!(glm::length(x) > 0.f)) throw std::invalid_argument("toy renderer: parallelogram edges are parallel");
         prims_.push_back({false, c, e1, e2, glm::normalize(x), 0.f, glm::length(x), mat});
     }
     /// Sets the camera and collects the lights and bounds; call after the last primitive (the
@@ -146,7 +151,9 @@ public:
             const Primitive& q = prims_[i];
             if (q.sphere) lo = glm::min(lo, q.c - q.r), hi = glm::max(hi, q.c + q.r);
             else for (Vec3 v : {q.c, q.c + q.e1, q.c + q.e2, q.c + q.e1 + q.e2}) lo = glm::min(lo, v), hi = glm::max(hi, v);
-            if (gdr::max_component(materials_.at(q.material).emission) <= 0.f) continue;
+            if (q.material < 0 || size_t(q.material) >= materials_.size())
+                throw std::invalid_argument("toy renderer: primitive " + std::to_string(i) + " names no material");
+            if (gdr::max_component(materials_[q.material].emission) <= 0.f) continue;
             if (q.sphere) throw std::invalid_argument("toy renderer: emitting sphere (only parallelograms emit)");
             lights_.push_back(i), light_area_ += q.area, light_cdf_.push_back(light_area_);
         }
