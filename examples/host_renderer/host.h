@@ -89,6 +89,7 @@ public:
         if (!(c > 0.f) || std::abs(glm::dot(w, right_)) > c * tx_ || std::abs(glm::dot(w, up_)) > c * ty_) return 0.f;
         return 1.f / (4.f * tx_ * ty_ * c * c * c);
     }
+    const Vec3& forward() const { return fwd_; }  ///< Unit viewing direction.
     int width() const { return w_; }    ///< Pixels across.
     int height() const { return h_; }   ///< Pixels down.
 

@@ -1,7 +1,10 @@
-// Renders the toy renderer's Cornell-style scene (host.h) with its own
-// reference path tracer (reference_pt.h) and writes a float RGB OpenEXR.
+// Renders the toy renderer's Cornell-style scene (host.h) with gradient-
+// domain path tracing through gdr's templated path-space core (host_gpt.h),
+// reconstructs the image with gdr's screened Poisson solver, and writes the
+// layers to one OpenEXR file (color, primal, dx, dy, direct); with
+// --reference, its own path tracer's image instead (reference_pt.h).
 //
-//   gdr_host_renderer OUT.exr [--spp N] [--size N] [--max-depth N]
+//   gdr_host_renderer OUT.exr [--spp N] [--size N] [--max-depth N] [--shift NAME] [--reference 1]
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -12,6 +15,9 @@
 #include <OpenEXR/ImfOutputFile.h>
 #include <tbb/parallel_for.h>
 
+#include "gdr/core/error.h"
+#include "gdr/reconstruct/reconstructor.h"
+#include "host_gpt.h"
 #include "reference_pt.h"
 
 namespace {
@@ -39,17 +45,28 @@ std::vector<float> render_reference(const toy::Renderer& host, int spp, const to
     return rgb;
 }
 
-void write_exr(const std::string& path, const std::vector<float>& rgb, int w, int h) {
+// Writes RGB layers (row-major, w x h) to one float OpenEXR file: the layer
+// named "color" as R, G, B, the others as name.R, name.G, name.B.
+void write_exr(const std::string& path, const std::vector<std::pair<std::string, const std::vector<float>*>>& layers,
+               int w, int h) {
     Imf::Header header(w, h);
     Imf::FrameBuffer fb;
-    const char* names[3] = {"R", "G", "B"};
-    for (int c = 0; c < 3; ++c) {
-        header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
-        fb.insert(names[c], Imf::Slice(Imf::FLOAT, (char*)(rgb.data() + c), 3 * sizeof(float), 3 * sizeof(float) * w));
-    }
+    const char* rgb[3] = {"R", "G", "B"};
+    for (const auto& [name, data] : layers)
+        for (int c = 0; c < 3; ++c) {
+            const std::string ch = name == "color" ? rgb[c] : name + "." + rgb[c];
+            header.channels().insert(ch, Imf::Channel(Imf::FLOAT));
+            fb.insert(ch, Imf::Slice(Imf::FLOAT, (char*)(data->data() + c), 3 * sizeof(float), 3 * sizeof(float) * w));
+        }
     Imf::OutputFile file(path.c_str(), header);
     file.setFrameBuffer(fb);
     file.writePixels(h);
+}
+
+gdr::Image to_image(const std::vector<float>& rgb, int w, int h) {
+    gdr::Image im(w, h, 3);
+    std::copy(rgb.begin(), rgb.end(), im.data());
+    return im;
 }
 
 }  // namespace
@@ -59,36 +76,67 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "usage: gdr_host_renderer OUT.exr [--spp N] [--size N] [--max-depth N]\n");
         return 2;
     }
-    int spp = 64, size = 64;
+    int spp = 64, size = 64, reference = 0;
     toy::PtOptions opt;
+    std::string shift = "half-vector";
     for (int i = 2; i + 1 < argc; i += 2) {
         const std::string key = argv[i];
+        if (key == "--shift") {
+            shift = argv[i + 1];
+            continue;
+        }
         int value = 0;
         try {
             value = std::stoi(argv[i + 1]);
         } catch (const std::exception&) {
-            value = 0;
+            value = -1;
         }
-        int* target = key == "--spp" ? &spp : key == "--size" ? &size : key == "--max-depth" ? &opt.max_depth : nullptr;
-        if (!target || value <= 0 || value > 1 << 16) {
-            std::fprintf(stderr, "gdr_host_renderer: %s %s: expected --spp, --size or --max-depth and a number in [1, 65536]\n",
+        int* target = key == "--spp"         ? &spp
+                      : key == "--size"      ? &size
+                      : key == "--max-depth" ? &opt.max_depth
+                      : key == "--reference" ? &reference
+                                             : nullptr;
+        if (!target || value < (target == &reference ? 0 : 1) || value > 1 << 16) {
+            std::fprintf(stderr,
+                         "gdr_host_renderer: %s %s: expected --spp, --size, --max-depth or --reference and a number in "
+                         "[1, 65536] (0 or 1 for --reference), or --shift NAME\n",
                          argv[i], argv[i + 1]);
             return 2;
         }
         *target = value;
     }
     const toy::Renderer host = toy::cornell_scene(size, size);
-    long dropped = 0;
-    const std::vector<float> rgb = render_reference(host, spp, opt, dropped);
     try {
-        write_exr(argv[1], rgb, size, size);
+        if (reference) {
+            long dropped = 0;
+            const std::vector<float> rgb = render_reference(host, spp, opt, dropped);
+            write_exr(argv[1], {{"color", &rgb}}, size, size);
+            double mean = 0.0;
+            for (float v : rgb) mean += v;
+            std::printf("wrote %s: %dx%d, %d spp (reference path tracer), mean radiance %.4f, %ld non-finite samples dropped\n",
+                        argv[1], size, size, spp, mean / double(rgb.size()), dropped);
+            return 0;
+        }
+        toy::GptOptions g;
+        g.spp = spp, g.max_depth = opt.max_depth, g.shift = shift;
+        const toy::GptImages im = toy::render_gpt(host, g);
+        const gdr::Image primal = to_image(im.primal, size, size), dx = to_image(im.dx, size, size),
+                         dy = to_image(im.dy, size, size), direct = to_image(im.direct, size, size);
+        const gdr::Image color =
+            gdr::reconstruct("poisson-l1", gdr::Params("gdr_host_renderer"), {&primal, &dx, &dy, &direct});
+        const std::vector<float> c(color.data(), color.data() + size_t(size) * size * 3);
+        write_exr(argv[1], {{"color", &c}, {"primal", &im.primal}, {"dx", &im.dx}, {"dy", &im.dy}, {"direct", &im.direct}},
+                  size, size);
+        double mean = 0.0;
+        for (float v : c) mean += v;
+        std::printf("wrote %s: %dx%d, %d spp G-PT (shift %s), poisson-l1 mean radiance %.4f\n", argv[1], size, size,
+                    spp, shift.c_str(), mean / double(c.size()));
+    } catch (const gdr::Error& e) {  // an unknown shift, bad parameters or non-finite buffers
+        std::fprintf(stderr, "gdr_host_renderer: %s\n", e.what());
+        return 2;
     } catch (const std::exception& e) {
         std::fprintf(stderr, "gdr_host_renderer: cannot write %s: %s\n", argv[1], e.what());
         return 1;
     }
-    double mean = 0.0;
-    for (float v : rgb) mean += v;
-    std::printf("wrote %s: %dx%d, %d spp, mean radiance %.4f, %ld non-finite samples dropped\n", argv[1], size, size,
-                spp, mean / double(rgb.size()), dropped);
     return 0;
 }
