@@ -112,6 +112,13 @@ concept CameraModel = requires(const C& c, const Vec2& film, const Vec3& w) {
 /// - camera(): the CameraModel.
 /// - bounding_radius(): radius of a sphere holding the scene (scene units),
 ///   the scale of the validator's tolerances.
+/// Orientation is the host's own and must not be flipped towards the ray:
+/// ng's front is the emitting side, and a dielectric's outside is on
+/// frame.n's side. A light sample leaves infinite, delta and delta_light at
+/// their defaults (those are gdr's environment and delta lights); prim is
+/// the host's link back to its emitter. eval_delta() must accept a wi within
+/// about 1e-3 (unit-vector distance) of the exact delta direction, since the
+/// shifts compute it in their own arithmetic.
 /// Optional operations the core uses when a host has them: environment()
 /// (an environment light behind every miss), prefetch_light(),
 /// transport_factor() (light subpaths through refraction), packet
