@@ -2,7 +2,7 @@
 # projects can find_package(gdr) and link gdr::gdr, or find_package(gdr
 # COMPONENTS reconstruct) and link gdr::reconstruct alone.
 include(CMakePackageConfigHelpers)
-install(TARGETS gdr gdr_reconstruct EXPORT gdrTargets
+install(TARGETS gdr gdr_reconstruct gdr_path EXPORT gdrTargets
   ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
   LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
 install(DIRECTORY include/gdr DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})

@@ -1,6 +1,7 @@
 # Installs the gdr build in GDR_BUILD_DIR into a fresh prefix under WORK_DIR,
 # then configures, builds and runs a consumer project (SOURCE_DIR) against it,
-# with SCENE as its argument where given. With FORBID=NAME, the consumer's
+# with SCENE as its argument where given. EXE names the consumer's
+# executable (default: consumer), ARGS a list of arguments to run it with. With FORBID=NAME, the consumer's
 # executable must not need a shared library whose name holds NAME (read from
 # its dynamic section with READELF): a reconstruction-only consumer does not
 # load Embree. With REQUIRE=NAME it must need one (the full consumer does
@@ -12,6 +13,9 @@ foreach(var GDR_BUILD_DIR WORK_DIR SOURCE_DIR GENERATOR CXX)
     message(FATAL_ERROR "run.cmake: ${var} is not set")
   endif()
 endforeach()
+if(NOT EXE)
+  set(EXE consumer)
+endif()
 if(NOT BUILD_TYPE)
   set(BUILD_TYPE Release)
 endif()
@@ -36,7 +40,7 @@ step("configure" ${CMAKE_COMMAND} -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" -G "
      "-DCMAKE_CXX_COMPILER=${CXX}" "-DCMAKE_BUILD_TYPE=${BUILD_TYPE}" "-DCMAKE_PREFIX_PATH=${WORK_DIR}/prefix")
 step("build" ${CMAKE_COMMAND} --build "${WORK_DIR}/build")
 if(FORBID OR REQUIRE)
-  execute_process(COMMAND "${READELF}" -d "${WORK_DIR}/build/consumer" RESULT_VARIABLE rc OUTPUT_VARIABLE dyn
+  execute_process(COMMAND "${READELF}" -d "${WORK_DIR}/build/${EXE}" RESULT_VARIABLE rc OUTPUT_VARIABLE dyn
                   ERROR_VARIABLE err)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "consumer test: ${READELF} failed (${rc}): ${err}")
@@ -62,7 +66,7 @@ if(FORBID OR REQUIRE)
   endif()
 endif()
 if(SCENE)
-  step("run" "${WORK_DIR}/build/consumer" "${SCENE}")
+  step("run" "${WORK_DIR}/build/${EXE}" "${SCENE}")
 else()
-  step("run" "${WORK_DIR}/build/consumer")
+  step("run" "${WORK_DIR}/build/${EXE}" ${ARGS})
 endif()
