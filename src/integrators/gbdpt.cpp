@@ -88,7 +88,7 @@ bool kept(const uint8_t* conn, const PathDensities& d, int t) {
 // The unweighted contribution of joining camera-side vertex p (radiance
 // transport) to light-side vertex q (a surface or an emitter point), visibility
 // not tested: beta_q f_q G f_p beta_p (W/(m^2 sr)).
-Color join(const Vertex& q, const Vertex& p) {
+Color join(const Scene& scene, const Vertex& q, const Vertex& p) {
     const Vec3 d = p.si.p - q.si.p;
     const float dist2 = glm::dot(d, d);
     if (!(dist2 > 0.f)) return Color(0.f);
@@ -98,7 +98,7 @@ Color join(const Vertex& q, const Vertex& p) {
     if (q.delta_light) {
         // A point or spot light: its intensity towards p over its selection
         // probability, no cosine (delta_light.h).
-        const Color fp = vertex_f(p, -w, TransportMode::Radiance);
+        const Color fp = vertex_f(scene, p, -w, TransportMode::Radiance);
         return q.delta_light->intensity_towards(w) * float(1.0 / q.pdf_fwd) * fp * p.beta *
                (abs_cos_shading(p, w) / dist2);
     }
@@ -106,10 +106,10 @@ Color join(const Vertex& q, const Vertex& p) {
         cos_q = glm::dot(q.si.ng, w);
         if (!(cos_q > 0.f)) return Color(0.f);
     } else {
-        fq = vertex_f(q, w, TransportMode::Importance);
+        fq = vertex_f(scene, q, w, TransportMode::Importance);
         cos_q = abs_cos_shading(q, w);
     }
-    const Color fp = vertex_f(p, -w, TransportMode::Radiance);
+    const Color fp = vertex_f(scene, p, -w, TransportMode::Radiance);
     return q.beta * fq * fp * p.beta * (cos_q * abs_cos_shading(p, w) / dist2);
 }
 
@@ -390,7 +390,7 @@ private:
                         if (s >= 1 && off.b == t - 2) {
                             // y_{t-1} is x_{t-1} entered from y_{t-2}: the same segment to
                             // the light side, so x's visibility is y's.
-                            const Color v = join(*lend, off.p.v[t - 1]);
+                            const Color v = join(scene, *lend, off.p.v[t - 1]);
                             vy = cx.occluded ? Color(0.f) : v;
                             occluded_y = cx.occluded && !is_black(v);
                         } else {
@@ -426,7 +426,7 @@ private:
                     y1.wo = y1.si.frame.to_local(c1.v[1].wo);
                     const ShiftStep st = shift_onto(scene, *shift_, config_, prefix, 1, z2, y1, S.synth);
                     // f(y) = 0: no pair (see the t >= 2 case).
-                    const Color v = st.kind == ShiftStep::Kind::Reconnect ? join(z2, c1.v[1]) : Color(0.f);
+                    const Color v = st.kind == ShiftStep::Kind::Reconnect ? join(scene, z2, c1.v[1]) : Color(0.f);
                     if (!is_black(v)) {
                         defined = true;
                         fy[1] = connectable(c1.v[1]);

@@ -5,20 +5,6 @@
 
 namespace gdr {
 
-Vec3 vertex_direction(const Vertex& from, const Vertex& to) {
-    // An environment vertex's ng is the direction light travels from it.
-    if (to.infinite) return -to.si.ng;
-    if (from.infinite) return from.si.ng;
-    const Vec3 d = to.si.p - from.si.p;
-    const float len = glm::length(d);
-    return len > 0.f ? d / len : Vec3(0.f);
-}
-
-double environment_disk_pdf(const Scene& scene) {
-    const double r = scene.bounding_radius();
-    return 1.0 / (3.14159265358979323846 * r * r);
-}
-
 void append_escape_vertex(const Scene& scene, const Ray& ray, const Color& beta, double pdf_w, Subpath& path) {
     const Environment* env = scene.environment();
     if (!env) return;

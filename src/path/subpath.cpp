@@ -4,6 +4,7 @@
 
 #include "gdr/path/vertex.h"
 #include "gdr/path/dims.h"
+#include "gdr/path/densities.h"
 #include "gdr/path/environment.h"
 #include "gdr/scene/warp.h"
 
@@ -103,68 +104,11 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
                  RecordVertices{});
 }
 
-double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next) {
-    if (cur.infinite) return area_density(environment_disk_pdf(scene), cur, next);
-    if (next.infinite || (prev && prev->infinite)) {
-        // Directions to vertices at infinity are theirs, not their far points'.
-        if (cur.type != VertexType::Surface || !prev) return 0.0;
-        const SurfaceInteraction& si = cur.si;
-        const double pdf_w = si.material->bsdf->pdf(si.frame.to_local(vertex_direction(cur, *prev)),
-                                                    si.frame.to_local(vertex_direction(cur, next)), si.uv);
-        return area_density(pdf_w, cur, next);
-    }
-    const Vec3 d = next.si.p - cur.si.p;
-    const float len = glm::length(d);
-    if (!(len > 0.f)) return 0.0;
-    const Vec3 w = d / len;
-    double pdf_w = 0.0;
-    switch (cur.type) {
-        case VertexType::Camera: pdf_w = scene.camera().direction_pdf(w); break;
-        case VertexType::Light:
-            pdf_w = cur.delta_light ? cur.delta_light->emission_pdf_w(w) : std::max(0.f, glm::dot(cur.si.ng, w)) * kInvPi;
-            break;
-        case VertexType::Surface: {
-            if (!prev) return 0.0;
-            const Vec3 to_prev = glm::normalize(prev->si.p - cur.si.p);
-            const SurfaceInteraction& si = cur.si;
-            pdf_w = si.material->bsdf->pdf(si.frame.to_local(to_prev), si.frame.to_local(w), si.uv);
-            break;
-        }
-    }
-    return area_density(pdf_w, cur, next);
-}
-
-double pdf_light_origin(const Scene& scene, const Vertex& v) {
-    if (v.delta_light) return scene.delta_light_pdf(*v.delta_light);
-    if (v.infinite) return scene.environment_pdf(-v.si.ng);
-    if (v.type == VertexType::Light) return v.pdf_fwd;
-    if (v.type != VertexType::Surface || !v.si.is_emitter()) return 0.0;
-    return scene.light_pdf_a(v.si.prim);
-}
-
-double pdf_light_direction(const Scene& scene, const Vertex& v, const Vertex& next) {
-    return v.infinite ? area_density(environment_disk_pdf(scene), v, next) : pdf_light_direction(v, next);
-}
-
-double pdf_light_direction(const Vertex& v, const Vertex& next) {
-    if (v.infinite) return 0.0;  // needs the scene's disk: the overload above
-    const Vec3 d = next.si.p - v.si.p;
-    const float len = glm::length(d);
-    if (!(len > 0.f)) return 0.0;
-    if (v.delta_light) return area_density(v.delta_light->emission_pdf_w(d / len), v, next);
-    return area_density(std::max(0.f, glm::dot(v.si.ng, d / len)) * kInvPi, v, next);
-}
-
-Color vertex_f(const Vertex& v, const Vec3& w, TransportMode mode) {
-    if (v.type != VertexType::Surface) return Color(0.f);
-    const SurfaceInteraction& si = v.si;
-    const Bsdf& bsdf = *si.material->bsdf;
-    const Vec3 wo = si.frame.to_local(v.wo), wi = si.frame.to_local(w);
-    return bsdf.eval(wo, wi, si.uv) * (transport_factor(bsdf, wo, wi, mode) * shading_correction(si, v.wo, w, mode));
-}
-
-float abs_cos_shading(const Vertex& v, const Vec3& w) {
-    return v.type == VertexType::Camera ? 1.f : std::abs(glm::dot(v.si.frame.n, w));
-}
+template double pdf_area(const Scene&, const Vertex*, const Vertex&, const Vertex&);
+template double pdf_light_origin(const Scene&, const Vertex&);
+template double pdf_light_direction(const Scene&, const Vertex&, const Vertex&);
+template double pdf_light_direction(const Vertex&, const Vertex&);
+template Color vertex_f(const Scene&, const Vertex&, const Vec3&, TransportMode);
+template float abs_cos_shading(const Vertex&, const Vec3&);
 
 }  // namespace gdr

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <optional>
+#include <type_traits>
 #include <span>
 #include <string_view>
 
@@ -55,12 +56,12 @@ struct StrategySet {
 /// connecting vertices are not delta (for s = 0, the light is not a delta
 /// light: PathDensities::delta_light), and a two-vertex path (the camera
 /// sees the light) has only s = 0, since a pinhole cannot be hit.
-bool strategy_possible(const PathDensities& d, int t, int max_s = -1);
+inline bool strategy_possible(const PathDensities& d, int t, int max_s = -1);
 /// MIS weight of strategy t for the path of `d` among the possible
 /// strategies of `set`, by its heuristic over their full-path densities
 /// (Veach 1997, section 10.2: a strategy's density over another's is a
 /// product of rev / fwd ratios, a zero density of a delta step counting as 1).
-double strategy_weight(const StrategySet& set, const PathDensities& d, int t);
+inline double strategy_weight(const StrategySet& set, const PathDensities& d, int t);
 /// Parses "s,t" into a strategy with s >= 0, t >= 1, (s, t) != (1, 1) and
 /// s + t >= min_vertices; nullopt for any other text.
 std::optional<Connection> parse_connection(std::string_view text, int min_vertices = 2);
@@ -71,15 +72,16 @@ std::optional<Connection> parse_connection(std::string_view text, int min_vertic
 /// (strategy_possible without a light-vertex limit). Unitless. What an
 /// estimator that restricts or pairs the strategies (gradient-domain
 /// bidirectional path tracing) sums its own MIS weights from.
-void strategy_density_ratios(const PathDensities& d, int t, std::vector<double>& out);
+inline void strategy_density_ratios(const PathDensities& d, int t, std::vector<double>& out);
 
 /// The densities of the path that strategy `c` forms from the two
 /// subpaths: the subpaths' own, with those of the (up to) four vertices
 /// around the connection recomputed for the joined path. `light_end` is the
 /// light-side end z_t: light.v[c.s - 1], or for s = 1 the sampled light
 /// vertex; ignored for s = 0.
-void connection_densities(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
-                          const Vertex* light_end, PathDensities& d);
+template <PathHost H>
+void connection_densities(const H& scene, const BasicSubpath<H>& light, const BasicSubpath<H>& camera, Connection c,
+                          std::type_identity_t<const BasicVertex<H>*> light_end, PathDensities& d);
 
 /// What a connection contributes.
 struct ConnectionResult {
@@ -99,7 +101,10 @@ struct ConnectionResult {
 /// weight among the strategies of `set`. Requires c.t >= 1, c.t <=
 /// camera.size(), c.s <= light.size() (or c.s = 1, which samples its own
 /// light), and (s, t) != (1, 1). Adds the shadow rays cast to `rays`.
-ConnectionResult connect(const Scene& scene, const Subpath& light, const Subpath& camera, Connection c,
+template <PathHost H>
+ConnectionResult connect(const H& scene, const BasicSubpath<H>& light, const BasicSubpath<H>& camera, Connection c,
                          const Sampler& camera_sampler, const StrategySet& set, bool want_weight, uint64_t& rays);
 
 }  // namespace gdr
+
+#include "gdr/path/detail/connection_impl.h"

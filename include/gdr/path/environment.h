@@ -19,10 +19,22 @@ namespace gdr {
 /// Unit world direction from vertex `from` towards vertex `to`: exact for
 /// environment vertices (their direction, not their far point); zero if two
 /// finite vertices coincide.
-Vec3 vertex_direction(const Vertex& from, const Vertex& to);
+template <class H>
+Vec3 vertex_direction(const BasicVertex<H>& from, const BasicVertex<H>& to) {
+    // An environment vertex's ng is the direction light travels from it.
+    if (to.infinite) return -to.si.ng;
+    if (from.infinite) return from.si.ng;
+    const Vec3 d = to.si.p - from.si.p;
+    const float len = glm::length(d);
+    return len > 0.f ? d / len : Vec3(0.f);
+}
 /// Planar density (1/m^2) of a light subpath's origin on the environment's
 /// emission disk: 1 / (pi r^2) with r the scene's bounding radius.
-double environment_disk_pdf(const Scene& scene);
+template <class H>
+double environment_disk_pdf(const H& scene) {
+    const double r = scene.bounding_radius();
+    return 1.0 / (3.14159265358979323846 * r * r);
+}
 /// Ends a camera subpath whose ray `ray` (unit direction) left the scene on
 /// the environment vertex it reached, carrying throughput `beta`; pdf_w is
 /// the solid-angle density (1/sr) with which the last vertex sampled the

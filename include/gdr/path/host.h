@@ -162,6 +162,26 @@ concept PrefetchingHost = requires(const H& h, float u) {
     h.prefetch_light(u);
 };
 
+/// A host with delta lights (point, spot, directional; gdr's Scene): light
+/// samples may be delta ones, and picks_delta(u) says whether the light
+/// numbers u pick one; delta_light_pdf(light) is its selection probability.
+template <class H>
+concept DeltaLightHost = requires(const H& h, float u, const DeltaLight& l) {
+    { h.picks_delta(u) } -> std::same_as<bool>;
+    { h.delta_light_pdf(l) } -> std::convertible_to<float>;
+};
+
+/// The host's BSDF value alone (1/sr, no cosine, non-delta lobes): its
+/// bsdf_f() where it has one (a value without the density may be cheaper),
+/// else eval_bsdf()'s f.
+template <PathHost H>
+Color host_bsdf_f(const H& h, const typename H::Interaction& hit, const Vec3& wo, const Vec3& wi) {
+    if constexpr (requires { { h.bsdf_f(hit, wo, wi) } -> std::same_as<Color>; })
+        return h.bsdf_f(hit, wo, wi);
+    else
+        return h.eval_bsdf(hit, wo, wi).f;
+}
+
 /// The factor turning the host's BSDF value (radiance transport) into the
 /// value for `mode`: only light subpaths (TransportMode::Importance) through
 /// refraction differ. A host without transport_factor() is taken to have

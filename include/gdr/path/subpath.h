@@ -9,11 +9,14 @@
 // Measures are in the names: pdf_w is per steradian, pdf_a per square metre.
 #pragma once
 
+#include <type_traits>
+
 #include <cstdint>
 #include <vector>
 
 #include "gdr/core/sampler.h"
 #include "gdr/path/vertex.h"
+#include "gdr/path/host.h"
 #include "gdr/scene/scene.h"
 
 namespace gdr {
@@ -138,7 +141,8 @@ void trace_light_subpath(const Scene& scene, const Sampler& sampler, const WalkO
 /// BSDF's density for a surface, the emission density (cos / pi) for a light,
 /// the film's direction density for the camera; converted with the cosine
 /// at `next` where it is a surface (none at the camera). 0 for a delta lobe.
-double pdf_area(const Scene& scene, const Vertex* prev, const Vertex& cur, const Vertex& next);
+template <PathHost H>
+double pdf_area(const H& scene, std::type_identity_t<const BasicVertex<H>*> prev, const BasicVertex<H>& cur, const BasicVertex<H>& next);
 /// Area density (1/m^2) at vertex `to` of solid-angle density pdf_w (1/sr)
 /// of the direction from `from`: pdf_w_to_a with the cosine at `to`'s
 /// geometric normal (none at the camera).
@@ -159,19 +163,41 @@ double area_density(double pdf_w, const BasicVertex<H>& from, const BasicVertex<
 /// Area density (1/m^2) with which a light subpath would start at emitter
 /// point `v` (power and area selection; for an environment vertex the
 /// solid-angle density of its direction, selection included); 0 where it does not emit.
-double pdf_light_origin(const Scene& scene, const Vertex& v);
+template <PathHost H>
+double pdf_light_origin(const H& scene, const BasicVertex<H>& v);
 /// Area density (1/m^2) at `next` of the direction a light subpath starting
 /// at emitter point `v` would emit towards it (cos / pi, converted; for an
 /// environment vertex the emission disk's density, path/environment.h).
-double pdf_light_direction(const Scene& scene, const Vertex& v, const Vertex& next);
+template <PathHost H>
+double pdf_light_direction(const H& scene, const BasicVertex<H>& v, const BasicVertex<H>& next);
 /// pdf_light_direction() of a finite emitter point `v` (0 for an environment vertex).
-double pdf_light_direction(const Vertex& v, const Vertex& next);
+template <class H>
+double pdf_light_direction(const BasicVertex<H>& v, const BasicVertex<H>& next);
 /// Scattering value at surface vertex `v` from its previous vertex (v.wo)
 /// towards unit world direction w, for the vertex's subpath's transport
 /// `mode`, with the shading-normal correction that importance transport
 /// needs (Veach 1997, section 5.3): f (1/sr).
-Color vertex_f(const Vertex& v, const Vec3& w, TransportMode mode);
+template <PathHost H>
+Color vertex_f(const H& scene, const BasicVertex<H>& v, const Vec3& w, TransportMode mode);
 /// |cos| between unit world direction w and the vertex's shading normal (1 at the camera).
-float abs_cos_shading(const Vertex& v, const Vec3& w);
+template <class H>
+float abs_cos_shading(const BasicVertex<H>& v, const Vec3& w);
+
+/// True for a vertex a connection can join on host H: it has a non-delta
+/// scattering (or is an endpoint) and is not a black surface.
+template <PathHost H>
+bool connectible(const H& host, const BasicVertex<H>& v) {
+    if (v.type != VertexType::Surface) return true;
+    const auto& m = host.surface(v.si);
+    return !m.pure_delta && !m.black;
+}
+
+// gdr's own Scene's are compiled once, in the library (gdr/path/densities.h).
+extern template double pdf_area(const Scene&, const Vertex*, const Vertex&, const Vertex&);
+extern template double pdf_light_origin(const Scene&, const Vertex&);
+extern template double pdf_light_direction(const Scene&, const Vertex&, const Vertex&);
+extern template double pdf_light_direction(const Vertex&, const Vertex&);
+extern template Color vertex_f(const Scene&, const Vertex&, const Vec3&, TransportMode);
+extern template float abs_cos_shading(const Vertex&, const Vec3&);
 
 }  // namespace gdr

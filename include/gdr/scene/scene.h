@@ -314,6 +314,10 @@ public:
     BsdfEval eval_bsdf(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
         return hit.material->bsdf->eval_pdf(wo, wi, hit.uv);
     }
+    /// Bsdf::eval() of the material at `hit` (1/sr, no cosine).
+    Color bsdf_f(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
+        return hit.material->bsdf->eval(wo, wi, hit.uv);
+    }
     /// Bsdf::pdf() of the material at `hit` (1/sr).
     float pdf_bsdf(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
         return hit.material->bsdf->pdf(wo, wi, hit.uv);
