@@ -1,10 +1,11 @@
 // Renders the toy renderer's Cornell-style scene (host.h) with gradient-
 // domain path tracing through gdr's templated path-space core (host_gpt.h),
 // reconstructs the image with gdr's screened Poisson solver, and writes the
-// layers to one OpenEXR file (color, primal, dx, dy, direct); with
-// --reference, its own path tracer's image instead (reference_pt.h).
+// layers to one OpenEXR file (color, primal, dx, dy, direct). --method pt
+// renders with gdr's path tracer estimator instead, --method reference with
+// the toy's own path tracer (reference_pt.h).
 //
-//   gdr_host_renderer OUT.exr [--spp N] [--size N] [--max-depth N] [--shift NAME] [--reference 1]
+//   gdr_host_renderer OUT.exr [--method gpt|pt|reference] [--spp N] [--size N] [--max-depth N] [--shift NAME]
 #include <cstdio>
 #include <string>
 #include <vector>
@@ -17,14 +18,17 @@
 
 #include "gdr/core/error.h"
 #include "gdr/reconstruct/reconstructor.h"
+#include "gdr/path/path_tracer.h"
 #include "host_gpt.h"
 #include "reference_pt.h"
 
 namespace {
 
-// Mean radiance per pixel (W/(m^2 sr)) over `spp` samples, row-major RGB; non-finite
-// samples are dropped (and counted in `dropped`) so that no pixel holds NaN or Inf.
-std::vector<float> render_reference(const toy::Renderer& host, int spp, const toy::PtOptions& opt, long& dropped) {
+// Mean radiance per pixel (W/(m^2 sr)) over `spp` samples of the toy's own
+// path tracer, or with `core` of gdr's path tracer estimator, row-major RGB;
+// non-finite samples are dropped (and counted in `dropped`) so that no pixel
+// holds NaN or Inf.
+std::vector<float> render_pt(const toy::Renderer& host, int spp, const toy::PtOptions& opt, bool core, long& dropped) {
     const int w = host.camera().width(), h = host.camera().height();
     std::vector<float> rgb(size_t(w) * h * 3, 0.f);
     std::vector<long> bad(h, 0);
@@ -34,7 +38,15 @@ std::vector<float> render_reference(const toy::Renderer& host, int spp, const to
             for (int i = 0; i < spp; ++i) {
                 gdr::Sampler s(gdr::SampleKey{7, uint32_t(x), uint32_t(y), uint32_t(i)});
                 const gdr::Vec2 film = gdr::Vec2(x, y) + s.next2d();
-                const gdr::Color c = toy::radiance(host, film, s, opt);
+                gdr::Color c;
+                if (core) {
+                    s.set_dimension(gdr::dims::kFilm);
+                    const gdr::Vec2 f = gdr::Vec2(x, y) + s.next2d();
+                    const gdr::PathOptions po{opt.max_depth, opt.rr_depth < 0 ? 1 << 30 : opt.rr_depth, opt.nee};
+                    c = gdr::trace_path(host, host.camera().generate_ray(f), s, po).radiance;
+                } else {
+                    c = toy::radiance(host, film, s, opt);
+                }
                 if (gdr::is_finite(c)) sum += c;
                 else ++bad[y];
             }
@@ -76,45 +88,46 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "usage: gdr_host_renderer OUT.exr [--spp N] [--size N] [--max-depth N]\n");
         return 2;
     }
-    int spp = 64, size = 64, reference = 0;
+    int spp = 64, size = 64;
     toy::PtOptions opt;
-    std::string shift = "half-vector";
+    std::string shift = "half-vector", method = "gpt";
     for (int i = 2; i + 1 < argc; i += 2) {
         const std::string key = argv[i];
-        if (key == "--shift") {
-            shift = argv[i + 1];
+        if (key == "--shift" || key == "--method") {
+            (key == "--shift" ? shift : method) = argv[i + 1];
             continue;
         }
         int value = 0;
         try {
             value = std::stoi(argv[i + 1]);
         } catch (const std::exception&) {
-            value = -1;
+            value = 0;
         }
-        int* target = key == "--spp"         ? &spp
-                      : key == "--size"      ? &size
-                      : key == "--max-depth" ? &opt.max_depth
-                      : key == "--reference" ? &reference
-                                             : nullptr;
-        if (!target || value < (target == &reference ? 0 : 1) || value > 1 << 16) {
+        int* target = key == "--spp" ? &spp : key == "--size" ? &size : key == "--max-depth" ? &opt.max_depth : nullptr;
+        if (!target || value <= 0 || value > 1 << 16) {
             std::fprintf(stderr,
-                         "gdr_host_renderer: %s %s: expected --spp, --size, --max-depth or --reference and a number in "
-                         "[1, 65536] (0 or 1 for --reference), or --shift NAME\n",
+                         "gdr_host_renderer: %s %s: expected --spp, --size or --max-depth and a number in [1, 65536], "
+                         "--method gpt|pt|reference or --shift NAME\n",
                          argv[i], argv[i + 1]);
             return 2;
         }
         *target = value;
     }
+    if (method != "gpt" && method != "pt" && method != "reference") {
+        std::fprintf(stderr, "gdr_host_renderer: --method %s: expected gpt, pt or reference\n", method.c_str());
+        return 2;
+    }
     const toy::Renderer host = toy::cornell_scene(size, size);
     try {
-        if (reference) {
+        if (method != "gpt") {
             long dropped = 0;
-            const std::vector<float> rgb = render_reference(host, spp, opt, dropped);
+            const std::vector<float> rgb = render_pt(host, spp, opt, method == "pt", dropped);
             write_exr(argv[1], {{"color", &rgb}}, size, size);
             double mean = 0.0;
             for (float v : rgb) mean += v;
-            std::printf("wrote %s: %dx%d, %d spp (reference path tracer), mean radiance %.4f, %ld non-finite samples dropped\n",
-                        argv[1], size, size, spp, mean / double(rgb.size()), dropped);
+            std::printf("wrote %s: %dx%d, %d spp (%s), mean radiance %.4f, %ld non-finite samples dropped\n", argv[1],
+                        size, size, spp, method == "pt" ? "gdr's path tracer" : "the toy's own path tracer",
+                        mean / double(rgb.size()), dropped);
             return 0;
         }
         toy::GptOptions g;

@@ -16,8 +16,6 @@ namespace gdr {
 
 namespace {
 
-PathResult trace_path_from(const Scene& scene, const Ray& ray, const Sampler& sampler, const PathOptions& opt,
-                           Subpath& path, bool first_hit);
 
 // Most camera rays traced as one Embree packet.
 constexpr int kPacket = 8;
@@ -107,67 +105,10 @@ private:
     int batch_ = kPacket;  // jobs per sample_batch(); does not change images
 };
 
-// The path tracer's two connections at each vertex of the camera subpath,
-// as the walk finds it.
-struct Connect {
-    const Scene& scene;
-    const Sampler& sampler;
-    const PathOptions& opt;
-    PathResult& r;
-    bool aux_done = false;  ///< Albedo and normal are recorded (at the first non-delta vertex).
-    void operator()(Subpath& path) {
-        static const Subpath kNoLight;  // s <= 1 reads no light subpath: s = 1 samples its own light
-        const StrategySet set{MisHeuristic::Power, opt.nee ? 1 : 0};
-        const int t = path.size();
-        const Vertex& x = path.v.back();
-        if (x.infinite) {
-            // The walk left the scene: the environment's radiance (s = 0) is all there is.
-            const ConnectionResult e = connect(scene, kNoLight, path, {0, t}, sampler, set, true, r.rays);
-            if (!is_black(e.value)) r.radiance += e.value * float(e.weight);
-            return;
-        }
-        if (t == 2) r.depth = x.si.t;
-        // Auxiliary data at the first vertex that is not a pure delta surface.
-        if (!aux_done && !x.si.material->pure_delta) {
-            r.albedo = x.si.material->bsdf->albedo(x.si.uv);
-            r.normal = x.si.frame.n;
-            aux_done = true;
-        }
-        if (x.si.is_emitter()) {
-            const ConnectionResult e = connect(scene, kNoLight, path, {0, t}, sampler, set, true, r.rays);
-            if (!is_black(e.value)) r.radiance += e.value * float(e.weight);
-        }
-        // A light sample would add a segment beyond max_depth.
-        if (!opt.nee || (opt.max_depth > 0 && t > opt.max_depth)) return;
-        const ConnectionResult l = connect(scene, kNoLight, path, {1, t}, sampler, set, true, r.rays);
-        if (!is_black(l.value)) r.radiance += l.value * float(l.weight);
-    }
-};
-
-// trace_path() of a camera ray already traced into the first hit record of
-// `path` (begin_camera_subpath), which hit if `first_hit`.
-PathResult trace_path_from(const Scene& scene, const Ray& ray, const Sampler& sampler, const PathOptions& opt,
-                           Subpath& path, bool first_hit) {
-    PathResult r;
-    // A path tracer's strategies read no reverse densities, and forward
-    // ones only at emitters.
-    WalkOptions wo;
-    wo.max_vertices = opt.max_depth, wo.rr_depth = opt.rr_depth;
-    wo.reverse_densities = false, wo.forward_densities = false;
-    wo.prefetch_light = opt.nee;
-    walk_subpath(scene, ray, Color(1.f), Color(1.f), scene.camera().direction_pdf(ray.d), sampler, wo, path,
-                 Connect{scene, sampler, opt, r}, true, first_hit);
-    r.rays += path.rays;
-    return r;
-}
 }  // namespace
 
-PathResult trace_path(const Scene& scene, Ray ray, Sampler& sampler, const PathOptions& opt) {
-    thread_local Subpath path;
-    SurfaceInteraction* first = begin_camera_subpath(scene, ray, path);
-    const bool hit = scene.intersect(ray, *first);
-    return trace_path_from(scene, ray, sampler, opt, path, hit);
-}
+template PathResult trace_path_from(const Scene&, const Ray&, const Sampler&, const PathOptions&, Subpath&, bool);
+template PathResult trace_path(const Scene&, Ray, Sampler&, const PathOptions&);
 
 void register_pt(Registry<Integrator>& r) {
     r.add("pt", "path tracing with next-event estimation and MIS (params: max_depth, rr_depth, nee, batch)",

@@ -326,6 +326,8 @@ public:
     std::optional<BsdfSample> eval_delta(const SurfaceInteraction& hit, const Vec3& wo, const Vec3& wi) const {
         return hit.material->bsdf->eval_delta(wo, wi, hit.uv);
     }
+    /// Bsdf::albedo() of the material at `hit` (unitless RGB; an auxiliary feature, optional in a host).
+    Color albedo(const SurfaceInteraction& hit) const { return hit.material->bsdf->albedo(hit.uv); }
     /// Bsdf::flags() of the material at `hit` (LobeFlags).
     uint32_t bsdf_flags(const SurfaceInteraction& hit) const { return hit.material->bsdf->flags(); }
     /// The material at `hit` (its SurfaceTraits fields are cached from its BSDF).
