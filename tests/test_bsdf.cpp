@@ -10,6 +10,7 @@
 #include <stb/stb_image_write.h>
 
 #include "chi2.h"
+#include "gdr/io/texture_files.h"
 #include "gdr/core/error.h"
 #include "gdr/core/sampler.h"
 #include "gdr/scene/bsdf.h"
@@ -755,6 +756,7 @@ TEST_CASE("material factory: MTL conventions of the shared scenes", "[bsdf]") {
         m.map_kd = test::public_scene("bathroom-contemporary/textures/wood.jpg");
         if (m.map_kd.empty()) WARN(test::public_scene_missing("bathroom-contemporary/textures/wood.jpg", false));
         if (!m.map_kd.empty()) {
+            read_material_textures(m);  // the loaders read map_kd (gdr/io/texture_files.h)
             const auto b = bsdf_from_mtl(m);
             const Color a = b->albedo(Vec2(0.5f));
             CHECK(a.g < a.r);  // the green channel is halved by Kd
@@ -762,6 +764,9 @@ TEST_CASE("material factory: MTL conventions of the shared scenes", "[bsdf]") {
             CHECK(a.r <= 1.f);
         }
         m.map_kd = "/nonexistent/nothing.jpg";
+        m.kd_map = nullptr;
+        CHECK_THROWS_WITH(read_material_textures(m), Catch::Contains("nothing.jpg"));
+        // A description whose map was never read is refused by name, not rendered untextured.
         CHECK_THROWS_WITH(bsdf_from_mtl(m), Catch::Contains("nothing.jpg"));
     }
     SECTION("explicit types, and unknown types list the valid ones") {

@@ -33,6 +33,7 @@
 #include "gdr/io/png.h"
 #include "gdr/scene/microfacet.h"
 #include "gdr/scene/sky.h"
+#include "gdr/io/texture_files.h"
 #include "gdr/scene/texture.h"
 #include "mitsuba_shapes.h"
 #include "obj_lines.h"

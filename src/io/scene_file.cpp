@@ -1,4 +1,5 @@
 #include "gdr/io/scene_file.h"
+#include "gdr/io/texture_files.h"
 
 #include <cctype>
 #include <cerrno>
@@ -664,6 +665,7 @@ void load_inline_mesh(const std::string& file, const std::string& where, const j
         mat.emission = d.ke;
         try {
             check_material_colours(d);
+            read_material_textures(d);
             mat.bsdf = it->second.type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, it->second.type);
         } catch (const Error& e) {
             fail(file, "materials." + name + ": " + e.what());
@@ -810,6 +812,7 @@ void load_obj_impl(const std::string& path, const Mat4& xf, TriangleMesh& mesh, 
         m.emission = d.ke;
         try {
             check_material_colours(d);
+            read_material_textures(d);
             m.bsdf = type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, type);
         } catch (const Error& e) {
             // An overridden material's values come (at least partly) from the scene file.
@@ -1203,11 +1206,12 @@ void edit_material(SceneFile& sf, const std::string& name, const std::string& fi
     // Every material of the name is rebuilt before any is installed: a refused value changes nothing.
     std::vector<std::pair<uint32_t, Material>> built;
     for (const SceneEditState::MaterialRecord& r : *records) {
-        const MaterialDesc d = apply_override(sf.path, r.base, o);
+        MaterialDesc d = apply_override(sf.path, r.base, o);
         Material m;
         m.emission = d.ke;
         try {
             check_material_colours(d);
+            read_material_textures(d);
             m.bsdf = o.type == "auto" ? bsdf_from_mtl(d) : bsdf_from_desc(d, o.type);
         } catch (const Error& e) {
             // check_material_colours speaks of MTL's names: the message names the key.

@@ -199,7 +199,16 @@ struct MaterialDesc {
     bool metal = false;            ///< Pm 1: conductor.
     int illum = 2;                 ///< MTL illumination model.
     std::string map_kd;            ///< Absolute path of the diffuse texture, or empty.
+    /// The texture map_kd names, read by the scene loaders
+    /// (gdr/io/texture_files.h, read_material_textures) and scaled by
+    /// diffuse_map_scale(); null without one.
+    std::shared_ptr<Texture> kd_map;
 };
+
+/// The factor on a material's diffuse texture: Kd, or 1 where Kd is black
+/// (exporters write Kd 0 0 0 beside a map as a placeholder, so the map is
+/// used unscaled rather than turned black).
+inline Color diffuse_map_scale(const MaterialDesc& m) { return is_black(m.kd) ? Color(1.f) : m.kd; }
 
 /// The BSDF for an MTL material, by the conventions of docs/scenes.md ("MTL rules"):
 /// illum 5 mirror, illum 7 dielectric (rough if Pr > 0), Pm 1 rough conductor,

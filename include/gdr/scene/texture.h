@@ -26,9 +26,6 @@ public:
 /// A texture that returns one colour everywhere.
 std::shared_ptr<Texture> make_constant_texture(const Color& c);
 
-/// An image texture (bilinear, repeat wrap) scaled by `scale`; throws
-/// InputError naming the file if it is missing or unreadable.
-std::shared_ptr<Texture> load_image_texture(const std::string& path, const Color& scale = Color(1.f));
 
 /// An image texture from linear RGB pixels (row 0 = top of the picture).
 std::shared_ptr<Texture> make_image_texture(Image linear_rgb, const Color& scale = Color(1.f));
@@ -54,23 +51,6 @@ struct ImageTextureOptions {
 /// An image texture of linear RGB pixels (row 0 at the top) looked up with
 /// options.scale, wrap and nearest (srgb and gamma do not apply: the pixels are linear).
 std::shared_ptr<Texture> make_image_texture(Image linear_rgb, const ImageTextureOptions& options);
-
-/// An image texture read with `options`; throws InputError naming the file if
-/// it is missing or unreadable.
-std::shared_ptr<Texture> load_image_texture(const std::string& path, const ImageTextureOptions& options);
-
-/// The linear RGB pixels (row 0 at the top) of an 8-bit image (PNG, JPEG,
-/// ..., decoded by options.srgb / options.gamma) or a Radiance .hdr file (as
-/// stored), as load_image_texture reads them; options.scale, wrap and
-/// nearest do not apply. Throws InputError naming the file.
-Image read_image_rgb(const std::string& path, const ImageTextureOptions& options);
-
-/// The opacity of an image as a grey texture (unitless in [0, 1]): its alpha
-/// channel, as stored, where the file has one and `use_alpha` is set, else the
-/// luminance of its (decoded) colour, times options.scale. Throws InputError
-/// as load_image_texture.
-std::shared_ptr<Texture> load_opacity_texture(const std::string& path, const ImageTextureOptions& options,
-                                              bool use_alpha = true);
 
 /// A checkerboard of period 1 in (u', v') = (m * (u, v, 1)).xy: c0 where the
 /// fractional parts of u' and v' are both above 1/2 or both at most 1/2, c1

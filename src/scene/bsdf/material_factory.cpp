@@ -17,12 +17,13 @@ constexpr std::array<const char*, 7> kBsdfTypes = {"auto",           "diffuse", 
 /// there), else the Phong-equivalent alpha of Ns (classic MTL files).
 float material_alpha(const MaterialDesc& m) { return m.pr >= 0.f ? m.pr : phong_to_alpha(m.ns); }
 
-/// Diffuse reflectance texture: map_Kd modulated by Kd. A black Kd next to a
-/// map means "Kd not given" (exporters write Kd 0 0 0 as a placeholder), so
-/// the map is used unscaled rather than turned black.
+/// Diffuse reflectance texture: map_Kd as read by the loaders (modulated by
+/// diffuse_map_scale()), else Kd.
 std::shared_ptr<Texture> diffuse_texture(const MaterialDesc& m) {
+    if (m.kd_map) return m.kd_map;
     if (m.map_kd.empty()) return make_constant_texture(m.kd);
-    return load_image_texture(m.map_kd, is_black(m.kd) ? Color(1.f) : m.kd);
+    throw ParameterError("material '" + m.name + "': its map_kd '" + m.map_kd +
+                         "' was not read (gdr/io/texture_files.h: read_material_textures)");
 }
 
 /// Reflectance of a mirror or conductor chosen explicitly by type: Ks, or Kd
