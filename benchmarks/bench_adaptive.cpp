@@ -22,7 +22,7 @@
 #include <utility>
 #include <vector>
 
-#include "gdr/cli/commands.h"
+#include "gdr/core/args.h"
 #include "gdr/eval/equal_time.h"
 #include "gdr/integrators/adaptive.h"
 #include "gdr/integrators/integrator.h"
@@ -68,7 +68,7 @@ std::pair<std::string, std::string> key_value(const std::string& opt, const std:
 
 Options parse(int argc, char** argv) {
     Options o;
-    cli::ArgReader a{std::vector<std::string>(argv + 1, argv + argc)};
+    ArgReader a{std::vector<std::string>(argv + 1, argv + argc)};
     while (a.more()) {
         const std::string opt = a.next();
         if (opt == "--quick") {

@@ -38,7 +38,7 @@
 //                     these parameters (repeatable); replaces the default rows
 //                     gpt-w1 (poisson-weighted's defaults: L1) and gpt-w2 (norm=l2).
 //   --no-neural       leaves the row gpt-neural out. It is there only where the
-//                     neural reconstructor's plugin is built (gdr/cli/plugins.h):
+//                     neural reconstructor's plugin is built (gdr/plugin.h):
 //                     the G-PT render of the other rows reconstructed by the U-Net,
 //                     placed at render + inference time.
 //   --neural-set key=value  a parameter of the neural reconstructor (weights, threads).
@@ -62,8 +62,8 @@
 #include <string>
 #include <vector>
 
-#include "gdr/cli/commands.h"
-#include "gdr/cli/plugins.h"
+#include "gdr/core/args.h"
+#include "gdr/plugin.h"
 #include "gdr/eval/equal_time.h"
 #include "gdr/eval/plot.h"
 #include "gdr/integrators/integrator.h"
@@ -176,16 +176,16 @@ Options parse(int argc, char** argv) {
         else if (a == "--neural-primal-set") o.neural_primal_sets.push_back(next());
         else if (a == "--no-bdpt") o.bdpt = false;
         else if (a == "--no-gbdpt") o.gbdpt = false;
-        else if (a == "--width") o.width = int(cli::ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
+        else if (a == "--width") o.width = int(ArgReader::parse_int(a, next(), 1, 65536)), width_set = true;
         else if (a == "--budgets") {
             o.budgets.clear();
-            for (const std::string& b : split(next())) o.budgets.push_back(cli::ArgReader::parse_real(a, b));
+            for (const std::string& b : split(next())) o.budgets.push_back(ArgReader::parse_real(a, b));
             budgets_set = true;
-        } else if (a == "--ref-spp") o.ref_spp = cli::ArgReader::parse_int(a, next(), 1, 1LL << 32), spp_set = true;
+        } else if (a == "--ref-spp") o.ref_spp = ArgReader::parse_int(a, next(), 1, 1LL << 32), spp_set = true;
         else if (a == "--out") o.out = next();
         else if (a == "--cache") o.cache = next();
         else if (a == "--docs") o.docs = next();
-        else if (a == "--threads") o.threads = int(cli::ArgReader::parse_int(a, next(), 0, 1 << 16));
+        else if (a == "--threads") o.threads = int(ArgReader::parse_int(a, next(), 0, 1 << 16));
         else if (a == "-h" || a == "--help") {
             std::printf("usage: bench_equal_time [--quick] [--references-only] [--refresh-references] [--scenes a,b]\n"
                         "         [--scene [NAME=]PATH.json]... [--width W] [--budgets s1,s2,..] [--ref-spp N]\n"
@@ -518,9 +518,10 @@ int main(int argc, char** argv) try {
     std::unique_ptr<Reconstructor> neural, neural_primal;
     int neural_m = -1, primal_m = -1;  // their rows
     if (o.neural) {
-        // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise.
-        setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
-        const cli::PluginLoad& plugin = cli::load_plugins();
+        // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise; libtorch's
+        // OpenMP threads wait passively, as the gdr tool sets them.
+        setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
+        const PluginLoad plugin = load_plugins_from(plugin_path_dirs(GDR_PLUGIN_BUILD_DIR));
         if (reconstructor_registry().has("neural")) {
             // A neural row: its reconstructor from `defaults` then the `sets` texts.
             const auto add_row = [&](const std::string& row, const std::string& label, Rgb8 colour, Params p,

@@ -28,7 +28,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "gdr/cli/commands.h"
+#include "gdr/core/args.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
         }
         const std::string path = argc > 1 ? argv[1] : GDR_SOURCE_DIR "/scenes/cornell-box/scene.json";
         int repeats = 3;
-        if (argc > 2) repeats = int(cli::ArgReader::parse_int("repeats", argv[2], 1, 10000));
+        if (argc > 2) repeats = int(ArgReader::parse_int("repeats", argv[2], 1, 10000));
         std::printf("machine: %s\n", bench::machine_description().c_str());
         // First, while this process has started no threads: a child forked
         // from a process with running TBB workers could not start its own.

@@ -33,7 +33,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
-#include "gdr/cli/commands.h"
+#include "gdr/core/args.h"
 #include "gdr/core/error.h"
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
@@ -211,9 +211,9 @@ int main(int argc, char** argv) {
                 if (i + 1 >= argc) throw gdr::ParameterError("option " + a + " needs a value");
                 return argv[++i];
             };
-            if (a == "--spp") spp = gdr::cli::ArgReader::parse_int(a, value(), 1, 1LL << 32);
-            else if (a == "--repeats") repeats = int(gdr::cli::ArgReader::parse_int(a, value(), 1, 10000));
-            else if (a == "--threads") threads = int(gdr::cli::ArgReader::parse_int(a, value(), 0, 1 << 16));
+            if (a == "--spp") spp = gdr::ArgReader::parse_int(a, value(), 1, 1LL << 32);
+            else if (a == "--repeats") repeats = int(gdr::ArgReader::parse_int(a, value(), 1, 10000));
+            else if (a == "--threads") threads = int(gdr::ArgReader::parse_int(a, value(), 0, 1 << 16));
             else if (a == "--set") sets.push_back(value());
             else if (a == "-h" || a == "--help") {
                 fmt::print("usage: bench_pt [--spp N] [--repeats R] [--threads T] [--set key=value]... [SCENE.json ...]\n");

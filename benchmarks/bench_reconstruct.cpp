@@ -30,8 +30,8 @@
 #include <tbb/info.h>
 
 #include "gdr/io/reconstruct_files.h"
-#include "gdr/cli/commands.h"
-#include "gdr/cli/plugins.h"
+#include "gdr/core/args.h"
+#include "gdr/plugin.h"
 #include "gdr/io/exr.h"
 #include "gdr/reconstruct/poisson.h"
 #include "gdr/reconstruct/reconstructor.h"
@@ -119,7 +119,7 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) {
             try {
-                reps = int(gdr::cli::ArgReader::parse_int("--reps", argv[++i], 1, 10000));
+                reps = int(gdr::ArgReader::parse_int("--reps", argv[++i], 1, 10000));
             } catch (const std::exception& e) {
                 std::fprintf(stderr, "bench_reconstruct: error: %s\n", e.what());
                 return 2;
@@ -193,8 +193,10 @@ int main(int argc, char** argv) {
     std::string neural_note = "not measured (--no-neural)";
     Timing t_neural;
     if (with_neural) {
-        setenv("GDR_PLUGIN_PATH", GDR_PLUGIN_BUILD_DIR, 0);
-        const cli::PluginLoad& plugin = cli::load_plugins();
+        // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise; libtorch's
+        // OpenMP threads wait passively, as the gdr tool sets them.
+        setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
+        const PluginLoad plugin = load_plugins_from(plugin_path_dirs(GDR_PLUGIN_BUILD_DIR));
         if (reconstructor_registry().has("neural")) {
             const auto net = reconstructor_registry().create("neural", Params("bench_reconstruct"));
             FrameBuffer fb(W, H);

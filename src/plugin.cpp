@@ -1,6 +1,8 @@
 // Loading plugin libraries (gdr/plugin.h).
 #include "gdr/plugin.h"
 
+#include <cstdlib>
+
 #include <dlfcn.h>
 
 #include <algorithm>
@@ -61,6 +63,19 @@ PluginLoad load_plugins_from(const std::vector<std::string>& dirs) {
         }
     }
     return r;
+}
+
+std::vector<std::string> plugin_path_dirs(const std::string& fallback) {
+    const char* env = std::getenv("GDR_PLUGIN_PATH");
+    if (!env) return {fallback};
+    std::vector<std::string> dirs;
+    const std::string s = env;
+    for (size_t pos = 0; pos <= s.size();) {
+        const size_t colon = std::min(s.find(':', pos), s.size());
+        if (colon > pos) dirs.push_back(s.substr(pos, colon - pos));
+        pos = colon + 1;
+    }
+    return dirs;
 }
 
 }  // namespace gdr

@@ -55,19 +55,12 @@ void require(const Registry<Base>& registry, const char* kind, const std::string
 }  // namespace
 
 std::vector<std::string> plugin_search_dirs() {
-    std::vector<std::string> dirs;
-    if (const char* env = std::getenv("GDR_PLUGIN_PATH")) {
-        const std::string s = env;
-        for (size_t pos = 0; pos <= s.size();) {
-            const size_t colon = std::min(s.find(':', pos), s.size());
-            if (colon > pos) dirs.push_back(s.substr(pos, colon - pos));
-            pos = colon + 1;
-        }
-        return dirs;
-    }
     std::error_code ec;
     const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    if (!ec) dirs.push_back((exe.parent_path() / GDR_PLUGIN_DIR_FROM_BIN).lexically_normal().string());
+    // Without the executable's path (no /proc), only $GDR_PLUGIN_PATH's.
+    const std::string beside = ec ? std::string() : (exe.parent_path() / GDR_PLUGIN_DIR_FROM_BIN).lexically_normal().string();
+    std::vector<std::string> dirs = plugin_path_dirs(beside);
+    std::erase(dirs, std::string());
     return dirs;
 }
 

@@ -61,6 +61,12 @@ struct PluginLoad {
 /// earlier directory wins. A missing directory is skipped. Never throws.
 PluginLoad load_plugins_from(const std::vector<std::string>& dirs);
 
+/// The plugin directories a program searches: those of $GDR_PLUGIN_PATH
+/// (colon-separated; set but empty: none), or `fallback` where the variable
+/// is unset (the gdr tool's is beside its executable, the benchmarks' the
+/// build tree's).
+std::vector<std::string> plugin_path_dirs(const std::string& fallback);
+
 }  // namespace gdr
 
 /// The entry points a plugin exports (C linkage, so that dlsym finds them by

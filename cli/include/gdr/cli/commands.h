@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "gdr/core/args.h"
 #include "gdr/core/image.h"
 #include "gdr/core/params.h"
 #include "gdr/io/render_header.h"
@@ -127,24 +128,7 @@ int print_usage(const std::string& command);
 /// gdr's version ("MAJOR.MINOR.PATCH"), as written into render headers.
 std::string version();
 
-/// Command-line scanning helpers shared by the subcommands.
-struct ArgReader {
-    const std::vector<std::string>& args;  ///< All arguments of the subcommand.
-    size_t i = 0;                          ///< Current position.
-    /// True while arguments remain.
-    bool more() const { return i < args.size(); }
-    /// The next argument.
-    const std::string& next() { return args[i++]; }
-    /// The value following option `opt`; throws naming the option if absent.
-    std::string value(const std::string& opt);
-    /// The value of `opt` as an integer in [lo, hi] (throws naming the option if malformed or out of range).
-    long long int_value(const std::string& opt, long long lo, long long hi);
-    /// The value of `opt` as a finite real number (throws naming the option if malformed, NaN or infinite).
-    double real_value(const std::string& opt);
-    /// `v`, the text given for option `opt`, as an integer in [lo, hi] (throws naming the option otherwise).
-    static long long parse_int(const std::string& opt, const std::string& v, long long lo, long long hi);
-    /// `v`, the text given for option `opt`, as a finite real number (throws naming the option otherwise).
-    static double parse_real(const std::string& opt, const std::string& v);
-};
+/// Command-line scanning (gdr/core/args.h), shared by the subcommands.
+using ArgReader = gdr::ArgReader;
 
 }  // namespace gdr::cli
