@@ -521,7 +521,7 @@ int main(int argc, char** argv) try {
         // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise; libtorch's
         // OpenMP threads wait passively, as the gdr tool sets them.
         setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
-        const PluginLoad plugin = load_plugins_from(plugin_path_dirs(GDR_PLUGIN_BUILD_DIR));
+        const PluginLoad plugin = load_plugins_from(plugin_path_dirs({GDR_PLUGIN_BUILD_DIR}));
         if (reconstructor_registry().has("neural")) {
             // A neural row: its reconstructor from `defaults` then the `sets` texts.
             const auto add_row = [&](const std::string& row, const std::string& label, Rgb8 colour, Params p,

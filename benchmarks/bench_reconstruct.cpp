@@ -196,7 +196,7 @@ int main(int argc, char** argv) {
         // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise; libtorch's
         // OpenMP threads wait passively, as the gdr tool sets them.
         setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
-        const PluginLoad plugin = load_plugins_from(plugin_path_dirs(GDR_PLUGIN_BUILD_DIR));
+        const PluginLoad plugin = load_plugins_from(plugin_path_dirs({GDR_PLUGIN_BUILD_DIR}));
         if (reconstructor_registry().has("neural")) {
             const auto net = reconstructor_registry().create("neural", Params("bench_reconstruct"));
             FrameBuffer fb(W, H);

@@ -759,20 +759,11 @@ std::string load_plugin_file(const fs::path& file) {
 /// if set, else beside the module: gdr-data/LIBDIR/gdr (a pip install), ../LIBDIR/gdr (the build
 /// tree) and ../../gdr (a cmake --install prefix's lib/pythonX.Y/dist-packages).
 std::vector<std::string> plugin_dirs(const std::string& module_file) {
-    std::vector<std::string> dirs;
-    if (const char* env = std::getenv("GDR_PLUGIN_PATH")) {
-        const std::string s = env;
-        for (size_t at = 0; at <= s.size();) {
-            const size_t end = std::min(s.find(':', at), s.size());
-            if (end > at) dirs.push_back(s.substr(at, end - at));
-            at = end + 1;
-        }
-        return dirs;
-    }
+    std::vector<std::string> beside;
     const fs::path here = fs::path(module_file).parent_path();
     for (const fs::path& d : {here / "gdr-data" / GDR_LIBDIR / "gdr", here / ".." / GDR_LIBDIR / "gdr", here / ".." / ".." / "gdr"})
-        dirs.push_back(d.lexically_normal().string());
-    return dirs;
+        beside.push_back(d.lexically_normal().string());
+    return gdr::plugin_path_dirs(std::move(beside));
 }
 
 /// gdr.load_plugin(path=None): a given file, or the neural plugin from plugin_dirs().

@@ -65,9 +65,9 @@ PluginLoad load_plugins_from(const std::vector<std::string>& dirs) {
     return r;
 }
 
-std::vector<std::string> plugin_path_dirs(const std::string& fallback) {
+std::vector<std::string> plugin_path_dirs(std::vector<std::string> fallback) {
     const char* env = std::getenv("GDR_PLUGIN_PATH");
-    if (!env) return {fallback};
+    if (!env) return fallback;
     std::vector<std::string> dirs;
     const std::string s = env;
     for (size_t pos = 0; pos <= s.size();) {

@@ -58,10 +58,8 @@ std::vector<std::string> plugin_search_dirs() {
     std::error_code ec;
     const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
     // Without the executable's path (no /proc), only $GDR_PLUGIN_PATH's.
-    const std::string beside = ec ? std::string() : (exe.parent_path() / GDR_PLUGIN_DIR_FROM_BIN).lexically_normal().string();
-    std::vector<std::string> dirs = plugin_path_dirs(beside);
-    std::erase(dirs, std::string());
-    return dirs;
+    if (ec) return plugin_path_dirs({});
+    return plugin_path_dirs({(exe.parent_path() / GDR_PLUGIN_DIR_FROM_BIN).lexically_normal().string()});
 }
 
 const PluginLoad& load_plugins() {

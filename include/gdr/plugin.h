@@ -64,8 +64,8 @@ PluginLoad load_plugins_from(const std::vector<std::string>& dirs);
 /// The plugin directories a program searches: those of $GDR_PLUGIN_PATH
 /// (colon-separated; set but empty: none), or `fallback` where the variable
 /// is unset (the gdr tool's is beside its executable, the benchmarks' the
-/// build tree's).
-std::vector<std::string> plugin_path_dirs(const std::string& fallback);
+/// build tree's, the Python module's beside the module).
+std::vector<std::string> plugin_path_dirs(std::vector<std::string> fallback);
 
 }  // namespace gdr
 
