@@ -86,7 +86,6 @@ PathResult trace_path_from(const H& scene, const Ray& ray, const Sampler& sample
     WalkOptions wo;
     wo.max_vertices = opt.max_depth, wo.rr_depth = opt.rr_depth;
     wo.reverse_densities = false, wo.forward_densities = false;
-    wo.prefetch_light = opt.nee;
     walk_subpath(scene, ray, Color(1.f), Color(1.f), scene.camera().direction_pdf(ray.d), sampler, wo, path,
                  detail::PathConnect<H>{scene, sampler, opt, r}, true, first_hit);
     r.rays += path.rays;

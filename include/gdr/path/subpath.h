@@ -108,9 +108,6 @@ struct WalkOptions {
     /// Record pdf_fwd at every vertex; without it only at emitters, the one
     /// place a path tracer's MIS weight (s = 0 against s = 1) reads it.
     bool forward_densities = true;
-    /// Start loading each vertex's emitter-table entry a vertex ahead (camera
-    /// walks, where the scene's light table is large enough for it to pay).
-    bool prefetch_light = true;
     /// Draw every vertex's classification number (Vertex::u_classify), which
     /// only probabilistic classification reads; without it the number stays
     /// 0.5 and a vertex costs one hash less.

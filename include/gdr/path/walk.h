@@ -67,7 +67,7 @@ void walk_subpath(const H& scene, Ray ray, Color beta, Color rel, double pdf_w, 
     const TransportMode mode = path.mode;
     bool prefetch = false;
     if constexpr (PrefetchingHost<H>)
-        prefetch = opt.prefetch_light && mode == TransportMode::Radiance && scene.light_prefetch_pays();
+        prefetch = mode == TransportMode::Radiance && scene.light_prefetch_pays();
     // A vertex's emitter and lobe numbers (one hash) are drawn before the ray
     // that reaches it, so that the emitter they select starts loading during
     // the traversal: on scenes with many emitters the light sample then does
