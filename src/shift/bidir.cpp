@@ -47,7 +47,7 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
             }
             if (is_black(s.f) || !(s.pdf > 0.f)) break;
         } else {
-            s = shift.step(ShiftStepInput{scene, config, x, k, yk, true});
+            s = shift.step(ShiftStepInput{scene, config, x, k, yk});
             if (s.kind == ShiftStep::Kind::Fail) break;
         }
         const double inv_pdf = 1.0 / double(xk.bs.pdf);
@@ -74,10 +74,8 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
         Vertex v;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             o.b = int(k);
-            if (s.visibility_deferred) {
-                ++rays;
-                o.blocked = !scene.visible(yk.si.p, yk.si.ng, next.si.p, next.si.ng);
-            }
+            ++rays;
+            o.blocked = !scene.visible(yk.si.p, yk.si.ng, next.si.p, next.si.ng);
             const Vec3 w = glm::normalize(yk.si.p - next.si.p);
             ny.si = next.si, ny.on_base = true, ny.wo = next.si.frame.to_local(w);
             v = next;
@@ -129,7 +127,7 @@ ShiftStep shift_onto(const Scene& scene, const Shift& shift, const ShiftConfig& 
     if (nx.type == VertexType::Light) nx.si.material = &scene.materials()[scene.mesh().material_ids[next.si.prim]];
     nx.type = VertexType::Surface;
     b.nee.resize(b.v.size());
-    return shift.step(ShiftStepInput{scene, config, b, size_t(k), y, true});
+    return shift.step(ShiftStepInput{scene, config, b, size_t(k), y});
 }
 
 Vertex camera_side_vertex(const Vertex& q, const Vertex& towards, const Vertex& away) {

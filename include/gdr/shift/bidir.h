@@ -48,7 +48,7 @@ void shift_camera_subpath(const Scene& scene, const Shift& shift, const ShiftCon
 /// subpath's surface vertex, or an emitter point): how the offset vertex `y`
 /// continues when the connection x_k -> next is the reconnection.
 /// `scratch` holds the base path the step reads. The reconnection's
-/// visibility is left to the caller (ShiftStep::visibility_deferred).
+/// visibility is left to the caller (ShiftStep::Kind::Reconnect).
 ShiftStep shift_onto(const Scene& scene, const Shift& shift, const ShiftConfig& config, const Vertex* prefix, int k,
                      const Vertex& next, const OffsetVertex& y, CameraPath& scratch);
 

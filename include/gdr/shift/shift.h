@@ -64,11 +64,6 @@ struct BasicShiftStepInput {
     const BasicCameraPath<H>& base;  ///< The recorded base path.
     size_t k;                  ///< Index of the current base vertex x_k in base.v (1 = the first hit; v[0] is the camera).
     const BasicOffsetVertex<H>& y;   ///< The offset's vertex at the same depth.
-    /// The caller will test a reconnection's segment y_k -> x_{k+1} itself
-    /// (batched with other offsets' segments): a step may then skip that test
-    /// and set ShiftStep::visibility_deferred. Steps that ignore this flag and
-    /// test visibility themselves stay correct.
-    bool defer_visibility = false;
 };
 
 /// The result of shifting the base's scattering at x_k onto y_k.
@@ -77,7 +72,11 @@ struct ShiftStep {
     enum class Kind {
         Fail,       ///< No offset path: f(y) = 0 from here on.
         Direction,  ///< The offset continues along `wi` with a ray of its own.
-        Reconnect,  ///< The offset connects y_k -> x_{k+1} and shares the base's vertices after it.
+        /// The offset connects y_k -> x_{k+1} and shares the base's vertices
+        /// after it. The caller tests the segment's visibility (the offset
+        /// walk batches it with other offsets' segments) and fails the offset
+        /// there if it is blocked: a step need not trace it.
+        Reconnect,
     };
     Kind kind = Kind::Fail;
     Vec3 wi{0.f};           ///< Offset direction at y_k (local frame of y_k).
@@ -92,10 +91,6 @@ struct ShiftStep {
     /// The step is only valid if the vertex it reaches is NOT connectable (otherwise
     /// the inverse shift would have reconnected there, and T would not be invertible).
     bool reject_if_connectable = false;
-    /// Kind Reconnect whose segment y_k -> x_{k+1} the step did not test for
-    /// visibility (only when the input's defer_visibility was set): the
-    /// caller tests it and turns the step into Fail if it is blocked.
-    bool visibility_deferred = false;
 };
 /// A shift step's input on gdr's own Scene.
 using ShiftStepInput = BasicShiftStepInput<Scene>;

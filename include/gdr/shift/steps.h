@@ -34,9 +34,10 @@ bool can_reconnect(const BasicShiftStepInput<H>& in) {
     return base_has_next(in) && base_connectable(in, in.k) && offset_connectable(in) && base_connectable(in, in.k + 1);
 }
 
-/// Reconnection y_k -> x_{k+1} (Kettunen et al., "Gradient-Domain Path Tracing" (2015)): fails if the segment is blocked, arrives from
-/// the other side of x_{k+1}'s surface, or carries no throughput. With
-/// in.defer_visibility the blocking test is left to the caller.
+/// Reconnection y_k -> x_{k+1} (Kettunen et al., "Gradient-Domain Path
+/// Tracing", 2015): fails if the segment arrives from the other side of
+/// x_{k+1}'s surface or carries no throughput; whether it is blocked is the
+/// caller's test (ShiftStep::Kind::Reconnect).
 /// |J| = |cos_y| ||x_k - x_{k+1}||^2 / (|cos_x| ||y_k - x_{k+1}||^2), cosines at x_{k+1}.
 template <PathHost H>
 ShiftStep reconnect(const BasicShiftStepInput<H>& in);
@@ -92,10 +93,6 @@ ShiftStep reconnect(const BasicShiftStepInput<H>& in) {
     const Vec3 wi = y.frame.to_local(wi_world);
     const BsdfEval fe = in.scene.eval_bsdf(y, in.y.wo, wi);
     if (is_black(fe.f)) return s;
-    if (in.defer_visibility)
-        s.visibility_deferred = true;
-    else if (!in.scene.visible(y.p, y.ng, next.si.p, point ? Vec3(0.f) : next.si.ng))
-        return s;
     s.kind = ShiftStep::Kind::Reconnect;
     s.wi = wi;
     s.f = fe.f;

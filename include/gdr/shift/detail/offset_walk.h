@@ -316,14 +316,13 @@ void walk_offset(const H& scene, const BasicShift<H>& shift, const ShiftConfig& 
             if (base_values) out.base_values_from = k;
             return;
         }
-        // The walk tests a reconnection's segment itself (queued, or at once)
-        // unless the shift did: every traced segment is then counted, blocked or not.
-        detail::assign_in_place(s, [&] { return shift.step(BasicShiftStepInput<H>{scene, config, base, k, y, true}); });
+        // The walk tests a reconnection's segment itself (queued, or at
+        // once): every traced segment is then counted, blocked or not.
+        detail::assign_in_place(s, [&] { return shift.step(BasicShiftStepInput<H>{scene, config, base, k, y}); });
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
-            if (s.visibility_deferred &&
-                !DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng, next.si.p, next.si.ng,
+            if (!DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng, next.si.p, next.si.ng,
                                                        {&out, k, true})) {
                 s = ShiftStep{};  // Fail
                 return;
