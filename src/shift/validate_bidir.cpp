@@ -135,10 +135,10 @@ ShiftReport validate_bidirectional_shift(const Scene& scene, const Shift& shift,
         const int t = int(pick.next1d() * float(x.size()));  // 0 .. size - 1: t = 0 stands for light tracing
         const int sv = 2 + std::min(light.size() - 2, int(pick.next1d() * float(light.size() - 1)));
         const Vertex& q = light.v[size_t(sv - 1)];
-        if (!q.connectible()) continue;
+        if (!connectible(scene, q)) continue;
         if (t >= 2) {
             const Vertex& pt = x.v[size_t(t - 1)];
-            if (pt.infinite || !pt.connectible()) continue;
+            if (pt.infinite || !connectible(scene, pt)) continue;
             ++rep.base_paths;
             shift_camera_subpath(scene, shift, config, x, right, y, rays);
             if (y.size() < t) continue;

@@ -70,14 +70,6 @@ struct BasicVertex {
 
     /// True if the walk sampled a direction here (bs is valid).
     bool scattered() const { return bs.pdf > 0.f; }
-
-    /// True for a vertex a connection can join: it has a non-delta
-    /// scattering (or is an endpoint) and is not a black surface (gdr's
-    /// Scene, whose hit records name their material).
-    bool connectible() const {
-        if (type != VertexType::Surface) return true;
-        return !si.material->pure_delta && !si.material->black;
-    }
 };
 /// A vertex of a subpath on gdr's own Scene.
 using Vertex = BasicVertex<Scene>;
