@@ -34,11 +34,14 @@ namespace {
 const char* kUsage = R"(usage:
   gdr_train data --out DIR --scenes A.json[,B.json...] [--crops 16] [--size 64]
                  [--spp 4,16,64] [--target-spp 1024] [--seed 1] [--threads 0] [--vary]
-                 [--meshes A.obj[,B.obj...]]
+                 [--meshes A.obj[,B.obj...]] [--roam] [--lenient]
       Renders random views (gpt) into DIR/crop-NNNNN.exr; existing views are kept,
       so a stopped run continues. --vary recolours materials and emitters of odd
       views; --meshes stands one of the OBJs, in a random material, in views 2
-      and 3 of every 4.
+      and 3 of every 4; --roam takes views from anywhere in the scene's open
+      space, not only near its camera; --lenient loads Mitsuba scenes as
+      'gdr render --lenient' does. A scene that does not load is skipped, named,
+      and its views are rendered by a later run once it loads.
   gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
                   [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only | --poisson]
                   [--augment] [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
@@ -135,7 +138,7 @@ struct Options {
 int data(int argc, char** argv) {
     const Options o(argc, argv,
                     {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads", "--meshes"},
-                    {"--vary"});
+                    {"--vary", "--roam", "--lenient"});
     DatasetOptions d;
     d.scenes = split(o.need("--scenes"));
     d.crops = int(o.num("--crops", d.crops));
@@ -146,12 +149,17 @@ int data(int argc, char** argv) {
     d.threads = int(o.num("--threads", 0));
     d.vary = o.flag("--vary");
     if (!o.get("--meshes").empty()) d.meshes = split(o.get("--meshes"));
+    d.roam = o.flag("--roam");
+    d.lenient = o.flag("--lenient");
     const auto t0 = std::chrono::steady_clock::now();
-    generate_dataset(d, o.need("--out"), [&](int done, int total) {
+    const DatasetReport r = generate_dataset(d, o.need("--out"), [&](int done, int total) {
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         fmt::print(stderr, "\rdata: view {}/{}  {:.0f} s", done, total, s);
     });
+    fmt::print(stderr, "\ndata: {} views rendered, {} kept", r.written, r.kept);
+    if (r.skipped_views > 0) fmt::print(stderr, ", {} left out: their scene did not load", r.skipped_views);
     fmt::print(stderr, "\n");
+    for (const auto& [scene, why] : r.skipped) fmt::print(stderr, "data: skipped {}: {}\n", scene, why);
     return 0;
 }
 

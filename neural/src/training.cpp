@@ -79,6 +79,57 @@ CameraDesc random_view(const CameraDesc& base, int size, std::mt19937_64& rng) {
     return d;
 }
 
+/// Distances (scene units) from the eye to the first surface along 16 rays
+/// through a 4x4 grid of jittered film points of `camera`; misses are +inf.
+std::vector<float> probe_distances(const Scene& scene, const Camera& camera, std::mt19937_64& rng) {
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    const CameraDesc& cd = camera.desc();
+    std::vector<float> d;
+    for (int k = 0; k < 16; ++k) {
+        const Vec2 film((float(k % 4) + u(rng)) * 0.25f * float(cd.width), (float(k / 4) + u(rng)) * 0.25f * float(cd.height));
+        SurfaceInteraction si;
+        d.push_back(scene.intersect(camera.generate_ray(film), si) ? si.t : kInf);
+    }
+    std::sort(d.begin(), d.end());
+    return d;
+}
+
+/// DatasetOptions::roam: a view from the scene's open space (see there);
+/// `seen` is the median probe distance of the scene's own camera.
+CameraDesc roam_view(const Scene& scene, const CameraDesc& base, float seen, int size, std::mt19937_64& rng) {
+    std::uniform_real_distribution<float> u(-1.f, 1.f), l(std::log(0.12f), std::log(0.5f));
+    const Vec3 up = glm::normalize(base.up);
+    const Vec3 fwd = glm::normalize(base.target - base.position);
+    const float reach = 0.5f * (std::isfinite(seen) ? seen : glm::length(base.target - base.position));
+    for (int attempt = 0; attempt < 100; ++attempt) {
+        Vec3 v;
+        do v = Vec3(u(rng), u(rng), u(rng));
+        while (glm::dot(v, v) > 1.f);
+        CameraDesc d = base;
+        d.position = base.position + reach * v;
+        // Turned about up (yaw), then tilted towards up (pitch), clamped off the poles.
+        const float yaw = glm::radians(60.f) * u(rng), pitch = glm::radians(20.f) * u(rng);
+        const Vec3 flat = fwd - glm::dot(fwd, up) * up;
+        if (glm::dot(flat, flat) < 1e-6f) return base;  // looking straight up or down: keep the scene's view
+        const Vec3 f0 = glm::normalize(flat), s0 = glm::cross(f0, up);
+        const float elev = std::clamp(std::asin(std::clamp(glm::dot(fwd, up), -1.f, 1.f)) + pitch, -1.3f, 1.3f);
+        const Vec3 h = std::cos(yaw) * f0 + std::sin(yaw) * s0;
+        d.target = d.position + std::cos(elev) * h + std::sin(elev) * up;
+        d.fov_deg = base.fov_deg * std::exp(l(rng));
+        d.width = d.height = size;
+        // In the same open space as the scene's eye: nothing between them.
+        const Vec3 step = d.position - base.position;
+        const float len = glm::length(step);
+        SurfaceInteraction si;
+        if (len > 0.f && scene.intersect(Ray{base.position, step / len}, si) && si.t < len) continue;
+        const std::vector<float> probe = probe_distances(scene, Camera(d), rng);
+        if (!std::isfinite(probe[7])) continue;  // half the rays or more see nothing
+        if (std::isfinite(seen) && (probe[7] < 0.2f * seen || probe[3] < 0.05f * seen)) continue;
+        return d;
+    }
+    return random_view(base, size, rng);
+}
+
 /// A BSDF whose every value is another's times a fixed colour (each channel
 /// in [0, 1]): the same lobes and densities, so every integrator and shift
 /// treats it as the original, only the reflectance is recoloured.
@@ -129,7 +180,9 @@ std::unique_ptr<Scene> varied_scene(const Scene& scene, const std::string& origi
             m.emission *= c * std::exp(scale(rng));
         }
     }
-    return std::make_unique<Scene>(scene.mesh(), std::move(mats), camera, origin + " (varied)");
+    auto out = std::make_unique<Scene>(scene.mesh(), std::move(mats), camera, origin + " (varied)");
+    if (!scene.delta_lights().empty()) out->set_delta_lights(scene.delta_lights(), origin);
+    return out;
 }
 
 /// A random material for an inserted mesh: diffuse, plastic, rough metal,
@@ -236,40 +289,76 @@ std::unique_ptr<Scene> scene_with_mesh(const Scene& scene, const std::string& or
     }
     auto out = std::make_unique<Scene>(std::move(mesh), std::move(mats), camera, origin + " + " + obj);
     if (scene.environment()) out->set_environment(scene.shared_environment());
+    if (!scene.delta_lights().empty()) out->set_delta_lights(scene.delta_lights(), origin);
     return out;
 }
 
+/// A scene of the data set as loaded, with what its views need.
+struct DataScene {
+    SceneFile file;
+    CameraDesc camera;           ///< The scene's own camera.
+    float seen = kInf;           ///< Median probe distance of that camera (DatasetOptions::roam).
+    std::unique_ptr<Integrator> gpt;  ///< With the scene file's integrator parameters.
+};
+
 }  // namespace
 
-void generate_dataset(const DatasetOptions& o, const std::string& dir, const std::function<void(int, int)>& progress) {
+DatasetReport generate_dataset(const DatasetOptions& o, const std::string& dir,
+                               const std::function<void(int, int)>& progress) {
     if (o.scenes.empty()) throw ParameterError("data set: no scenes given");
     if (o.crops < 1 || o.size < 2 || o.spp.empty() || o.target_spp < 1)
         throw ParameterError("data set: crops >= 1, size >= 2, at least one spp and target_spp >= 1 are needed");
     fs::create_directories(dir);
-    std::map<size_t, SceneFile> scenes;
-    std::map<size_t, CameraDesc> cameras;
-    Params gp("data set gpt");
-    gp.set("reconstruct", std::string("none"));
-    auto gpt = integrator_registry().create("gpt", gp);
+    DatasetReport report;
+    std::map<size_t, DataScene> scenes;
     for (int i = 0; i < o.crops; ++i) {
         const std::string path = fmt::format("{}/crop-{:05d}.exr", dir, i);
         if (fs::exists(path)) {
+            ++report.kept;
             if (progress) progress(i + 1, o.crops);
             continue;
         }
         const size_t si = size_t(i) % o.scenes.size();
-        if (!scenes.count(si)) {
-            scenes[si] = load_scene_file(o.scenes[si]);
-            cameras[si] = scenes[si].scene->camera().desc();
+        const std::string& name = o.scenes[si];
+        if (report.skipped.count(name)) {
+            ++report.skipped_views;
+            if (progress) progress(i + 1, o.crops);
+            continue;
         }
-        Scene& base = *scenes[si].scene;
+        if (!scenes.count(si)) {
+            DataScene ds;
+            try {
+                SceneFileOptions lo;
+                lo.lenient = o.lenient;
+                ds.file = load_scene_file(name, lo);
+            } catch (const InputError& e) {
+                report.skipped[name] = e.what();
+                ++report.skipped_views;
+                if (progress) progress(i + 1, o.crops);
+                continue;
+            }
+            ds.camera = ds.file.scene->camera().desc();
+            if (o.roam) {
+                std::mt19937_64 probe_rng(mix(o.seed, 0x70726f6265ull));  // "probe"
+                ds.seen = probe_distances(*ds.file.scene, ds.file.scene->camera(), probe_rng)[7];
+            }
+            // The file's integrator parameters (a Mitsuba scene's maxDepth,
+            // say), as `gdr render --integrator gpt` of the file takes them.
+            Params gp(name + " (data set gpt)");
+            for (const auto& [k, v] : ds.file.defaults.params.values()) gp.set(k, v);
+            gp.set("reconstruct", std::string("none"));
+            ds.gpt = integrator_registry().create("gpt", gp);
+            scenes.emplace(si, std::move(ds));
+        }
+        DataScene& ds = scenes.at(si);
+        Scene& base = *ds.file.scene;
         std::mt19937_64 rng(mix(o.seed, uint64_t(i)));
-        const Camera camera(random_view(cameras[si], o.size, rng));
+        const Camera camera(o.roam ? roam_view(base, ds.camera, ds.seen, o.size, rng) : random_view(ds.camera, o.size, rng));
         std::unique_ptr<Scene> varied;
         const bool vary = o.vary && i % 2 == 1;
         if (vary) {
             std::mt19937_64 vary_rng(mix(mix(o.seed, uint64_t(i)), 0x76617279ull));  // "vary"
-            varied = varied_scene(base, o.scenes[si], camera, vary_rng);
+            varied = varied_scene(base, name, camera, vary_rng);
             if (base.environment()) varied->set_environment(base.shared_environment());
         } else {
             base.set_camera(camera);
@@ -280,7 +369,7 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
         if (!o.meshes.empty() && i % 4 >= 2) {
             std::mt19937_64 mesh_rng(mix(mix(o.seed, uint64_t(i)), 0x6d657368ull));  // "mesh"
             inserted = o.meshes[size_t(i / 4) % o.meshes.size()];
-            with_mesh = scene_with_mesh(varied ? *varied : base, o.scenes[si], inserted, camera, mesh_rng, standing);
+            with_mesh = scene_with_mesh(varied ? *varied : base, name, inserted, camera, mesh_rng, standing);
             if (!with_mesh) inserted.clear();
         }
         Scene& scene = with_mesh ? *with_mesh : varied ? *varied : base;
@@ -288,16 +377,16 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
         st.threads = o.threads;
         FrameBuffer out(o.size, o.size), fb;
         st.spp = o.target_spp, st.seed = mix(mix(o.seed, uint64_t(i)), 0);
-        gpt->render(scene, st, fb);
+        ds.gpt->render(scene, st, fb);
         out.set("target", fb.get("primal"));
         std::string levels;
         for (int s : o.spp) {
             st.spp = s, st.seed = mix(mix(o.seed, uint64_t(i)), uint64_t(s));
-            gpt->render(scene, st, fb);
-            for (const char* name : kFrameLayers) out.set(fmt::format("s{}_{}", s, name), fb.get(name));
+            ds.gpt->render(scene, st, fb);
+            for (const char* layer : kFrameLayers) out.set(fmt::format("s{}_{}", s, layer), fb.get(layer));
             levels += (levels.empty() ? "" : ",") + std::to_string(s);
         }
-        out.metadata()["scene"] = o.scenes[si];
+        out.metadata()["scene"] = name;
         if (vary) out.metadata()["varied"] = "true";
         if (!inserted.empty()) {
             out.metadata()["inserted_mesh"] = inserted;
@@ -305,12 +394,16 @@ void generate_dataset(const DatasetOptions& o, const std::string& dir, const std
         }
         out.metadata()["spp"] = levels;
         out.metadata()["target_spp"] = std::to_string(o.target_spp);
+        if (o.roam) out.metadata()["view"] = "roam";
+        if (!ds.file.warnings.empty()) out.metadata()["load_warnings"] = std::to_string(ds.file.warnings.size());
         // Written aside and renamed: an interrupted view leaves no file that looks finished.
         const std::string tmp = fmt::format("{}/.partial-crop-{:05d}.exr", dir, i);
         write_exr(tmp, out);
         fs::rename(tmp, path);
+        ++report.written;
         if (progress) progress(i + 1, o.crops);
     }
+    return report;
 }
 
 Sample make_sample(const GradientBuffers& noisy, const Image& target, const UNetConfig& config, int spp) {
@@ -323,7 +416,7 @@ Sample make_sample(const GradientBuffers& noisy, const Image& target, const UNet
 std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& config) {
     std::vector<std::string> files;
     if (fs::is_directory(dir))
-        for (const auto& e : fs::directory_iterator(dir)) {
+        for (const auto& e : fs::recursive_directory_iterator(dir)) {
             const std::string name = e.path().filename().string();
             if (name.rfind("crop-", 0) == 0 && e.path().extension() == ".exr") files.push_back(e.path().string());
         }

@@ -359,3 +359,68 @@ TEST_CASE("shared meshes stand in views 2 and 3 of every 4 and leave the others 
     const TempDir bad("mesh-bad");
     CHECK_THROWS_WITH(neural::generate_dataset(d, bad.path.string()), Contains("README.md"));
 }
+
+TEST_CASE("a scene that does not load leaves its views out, named, and a later run adds them", "[neural][data]") {
+    const TempDir dir("skipped");
+    neural::DatasetOptions d = box_views(3, 8, 4, 5);
+    const std::string late = dir("late.xml");
+    d.scenes.push_back(late);
+    const neural::DatasetReport first = neural::generate_dataset(d, dir("views"));
+    CHECK(first.written == 2);
+    CHECK(first.skipped_views == 1);
+    REQUIRE(first.skipped.count(late) == 1);
+    CHECK_THAT(first.skipped.at(late), Contains("late.xml"));
+    CHECK(std::filesystem::exists(dir("views/crop-00000.exr")));
+    CHECK_FALSE(std::filesystem::exists(dir("views/crop-00001.exr")));
+    // The scene appears: a lit floor seen from above.
+    std::ofstream(late) << R"(<scene version="0.6.0">
+  <sensor type="perspective"><float name="fov" value="60"/>
+    <transform name="toWorld"><lookat origin="0, 3, 0" target="0, 0, 0" up="0, 0, 1"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+  <shape type="rectangle"><transform name="toWorld"><rotate x="1" angle="-90"/><scale value="5"/></transform>
+    <bsdf type="diffuse"/></shape>
+  <emitter type="point"><point name="position" x="0" y="2" z="0"/><spectrum name="intensity" value="10"/></emitter>
+</scene>)";
+    const neural::DatasetReport second = neural::generate_dataset(d, dir("views"));
+    CHECK(second.written == 1);
+    CHECK(second.kept == 2);
+    CHECK(second.skipped.empty());
+    const FrameBuffer v1 = read_exr(dir("views/crop-00001.exr"));
+    CHECK(v1.metadata().at("scene") == late);
+    CHECK(mean_of(v1.get("target")) > 0.0);
+}
+
+TEST_CASE("roaming views stand in the scene's open space and see it from a distance", "[neural][data]") {
+    // The Cornell box's camera stands before its open side: views moved up to
+    // half the distance it sees, turned and tilted, must not end behind a
+    // wall or facing one at close range.
+    const std::string scene = GDR_SOURCE_DIR "/scenes/cornell-box/scene.json";
+    const SceneFile sf = load_scene_file(scene);
+    const Camera& cam = sf.scene->camera();
+    std::vector<float> seen;
+    for (int y = 0; y < 16; ++y)
+        for (int x = 0; x < 16; ++x) {
+            SurfaceInteraction si;
+            const Vec2 film((x + 0.5f) * cam.width() / 16.f, (y + 0.5f) * cam.height() / 16.f);
+            seen.push_back(sf.scene->intersect(cam.generate_ray(film), si) ? si.t : kInf);
+        }
+    std::nth_element(seen.begin(), seen.begin() + 128, seen.end());
+    const float median_seen = seen[128];
+    neural::DatasetOptions d = box_views(8, 12, 2, 11);
+    d.roam = true;
+    const TempDir dir("roam");
+    neural::generate_dataset(d, dir.path.string());
+    for (int v = 0; v < 8; ++v) {
+        const FrameBuffer fb = read_exr(dir(fmt::format("crop-{:05d}.exr", v)));
+        CHECK(fb.metadata().at("view") == "roam");
+        std::vector<float> depth = fb.get("s2_depth").values();
+        // Depth 0 is a miss (the box's open side): at most half of the view.
+        const auto misses = std::count(depth.begin(), depth.end(), 0.f);
+        std::sort(depth.begin(), depth.end());
+        const float median = depth[depth.size() / 2];
+        INFO("view " << v << ": median depth " << median << ", scene camera's " << median_seen << ", " << misses
+                     << " misses of " << depth.size());
+        CHECK(misses <= long(depth.size()) / 2 + 8);
+        CHECK(median >= 0.15f * median_seen);
+    }
+}

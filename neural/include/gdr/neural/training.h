@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -59,17 +60,45 @@ struct DatasetOptions {
     /// up axis and sized to 30-70% of the view's width there. Views 0 and 1
     /// mod 4 are the files a run without meshes writes.
     std::vector<std::string> meshes;
+    /// Views from anywhere in the scene's open space instead of near its own
+    /// camera: the eye moved up to half the distance the scene's camera sees
+    /// (its median over probe rays) in any direction, the view turned up to
+    /// 60 degrees about the up axis and 20 degrees up or down. A view is kept
+    /// only if the segment from the scene's eye to it is free (it stands in
+    /// the same room, not inside a wall), at least half its probe rays hit
+    /// something, and its median and first-quartile probe distances are at
+    /// least 20% and 5% of the scene camera's median (no walls at 1 cm);
+    /// after 100 refused tries it falls back to a view near the camera.
+    bool roam = false;
+    /// Load Mitsuba scenes as `gdr render --lenient` does (unsupported parts
+    /// skipped or replaced; each file records how many warnings it had):
+    /// training data needs only a renderable scene, not the authors' exact one.
+    bool lenient = false;
+};
+
+/// What generate_dataset did.
+struct DatasetReport {
+    int written = 0;  ///< Views rendered by this call.
+    int kept = 0;     ///< Views whose file existed already.
+    /// Scene files that did not load, with the loader's message; their views
+    /// are left out (a later run, once they load, renders them).
+    std::map<std::string, std::string> skipped;
+    int skipped_views = 0;  ///< Views left out because their scene did not load.
 };
 
 /// Renders the data set into `dir`, one file crop-NNNNN.exr per view (layers
 /// target and sSPP_primal, sSPP_dx, ... for each noise level), skipping
 /// views whose file exists: a stopped run continues where it was, and the
 /// files depend only on the options, not on how often it was restarted.
+/// View i shows scenes[i % scenes.size()]; a scene file that does not load
+/// leaves its views out and is named in the report, so that the same
+/// command, run again once it loads, adds them.
 /// `progress` (may be empty) gets (views done, views total) after each view.
-void generate_dataset(const DatasetOptions& options, const std::string& dir,
-                      const std::function<void(int, int)>& progress = {});
+DatasetReport generate_dataset(const DatasetOptions& options, const std::string& dir,
+                               const std::function<void(int, int)>& progress = {});
 
-/// Every (view, noise level) of a data set directory as samples for `config`
+/// Every (view, noise level) of a data set directory, and of the directories
+/// below it (one per scene family, say), as samples for `config`
 /// (gradients or not); InputError naming the file if one is malformed or none exists.
 std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& config);
 
