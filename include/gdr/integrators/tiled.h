@@ -238,6 +238,7 @@ private:
     void check_settings(const RenderSettings& st, int W, int H) const;
     struct Buffers;
     std::unique_ptr<Buffers> buffers_;
+    class RenderRun;  // one render(): its accumulators, tiles and passes (tiled.cpp)
     const Image* density_ = nullptr;  // RenderSettings::sample_density of the render under way
     const Image* mask_ = nullptr;     // RenderSettings::gradient_mask of the render under way
     // Set while render() runs: a second, concurrent render() of the same
