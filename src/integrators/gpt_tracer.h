@@ -63,7 +63,6 @@ public:
         std::tie(trace_.max_vertices, trace_.rr_depth) = depth_params(p, who_);
         // G-PT's MIS reads solid-angle densities only.
         trace_.reverse_densities = false, trace_.forward_densities = false;
-        trace_.classify_numbers = config_.probabilistic;
         primal_both_ = p.get_choice("primal", "both", {"both", "base"}) == "both";
         batch_ = batch_param(p, who_, kMaxBatch);
         recon_ = GradientReconstructions::from(p, who_);
@@ -154,9 +153,12 @@ protected:
         OffsetPath* offsets[kMaxBatch];
         for (int j = 0; j < n; ++j) inside[j] = scratch.inside[j], offsets[j] = scratch.offsets[j];
         trace_camera_packets(scene, n, film, scratch.path, step, inside, offsets, scratch.packet);
-        for (int j = 0; j < n; ++j)
+        for (int j = 0; j < n; ++j) {
             continue_camera_path(scene, jobs[j].sampler, trace_, scratch.path[j], scratch.packet[j].rays[0],
                                  scratch.packet[j].hit[0]);
+            if (config_.probabilistic)
+                draw_classification_numbers(scene, jobs[j].sampler, trace_.max_vertices, scratch.path[j]);
+        }
         if (shift2_)
             // Both shifts start from the same offset camera hits.
             for (int j = 0; j < n; ++j)

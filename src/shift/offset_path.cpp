@@ -114,6 +114,7 @@ void trace_and_shift_camera_paths4(const Scene& scene, const Shift& shift, const
     CameraPacket packet;
     trace_camera_packet(scene, film, base, pixel_offsets, active, out, packet);
     continue_camera_path(scene, sampler, opt, base, packet.rays[0], packet.hit[0]);
+    if (config.probabilistic) draw_classification_numbers(scene, sampler, opt.max_vertices, base);
     shift_from_camera_packet(scene, shift, config, base, packet, out);
 }
 

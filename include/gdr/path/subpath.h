@@ -50,7 +50,7 @@ struct BasicVertex {
     float u_lobe = 0.f;       ///< Random number that chose the lobe (for replay).
     Vec2 u_dir{0.f};          ///< Random numbers that chose the direction (for replay).
     /// Random number of probabilistic vertex classification (0.5 unless
-    /// WalkOptions::classify_numbers), shared by a base path and its offsets.
+    /// draw_classification_numbers() drew it), shared by a base path and its offsets.
     float u_classify = 0.5f;
     /// A light vertex at infinity, on the environment (path/environment.h):
     /// si.ng is the unit direction light travels from it into the scene, si.p
@@ -100,10 +100,6 @@ struct WalkOptions {
     /// Record pdf_fwd at every vertex; without it only at emitters, the one
     /// place a path tracer's MIS weight (s = 0 against s = 1) reads it.
     bool forward_densities = true;
-    /// Draw every vertex's classification number (Vertex::u_classify), which
-    /// only probabilistic classification reads; without it the number stays
-    /// 0.5 and a vertex costs one hash less.
-    bool classify_numbers = false;
 };
 
 /// Traces the camera subpath through film point `film` (pixel units): v[0]

@@ -112,9 +112,6 @@ void walk_subpath(const H& scene, Ray ray, Color beta, Color rel, double pdf_w, 
         }
         const uint32_t b = vertex_block(mode, k);
         x.u_dir = sampler.at2(b + dims::kBsdfDir);
-        // Numbers are drawn only where they are read: classification only
-        // for probabilistic classification.
-        if (opt.classify_numbers) x.u_classify = sampler.at(b + dims::kClassify);
         const Vec3 wo = si.frame.to_local(x.wo);
         // The continuation is sampled before the hook's light sample: the two
         // are independent, so their dependency chains overlap.

@@ -41,6 +41,22 @@ inline bool is_connectable(float roughness, float u, const ShiftConfig& c) {
     return u < std::clamp(t, 0.f, 1.f);
 }
 
+/// Draws the numbers probabilistic classification reads (Vertex::u_classify,
+/// the dims::kClassify number of each vertex's block) into a traced camera
+/// path whose walk took `max_vertices` (WalkOptions::max_vertices): at every
+/// surface vertex the walk continued from (not its last allowed vertex, not a
+/// black surface), as the walk draws its other numbers there. The base path's
+/// numbers are then its offsets' (thesis 4.3.5). Hard classification reads
+/// none and the vertices keep 0.5.
+template <PathHost H>
+void draw_classification_numbers(const H& host, const Sampler& sampler, int max_vertices, BasicSubpath<H>& path) {
+    for (int k = 1; k < path.size(); ++k) {
+        BasicVertex<H>& x = path.v[size_t(k)];
+        if (x.infinite || (max_vertices >= 0 && k == max_vertices) || host.surface(x.si).black) continue;
+        x.u_classify = sampler.at(vertex_block(path.mode, k) + dims::kClassify);
+    }
+}
+
 /// The offset path's current vertex y_k, on host H (gdr/path/host.h).
 template <class H>
 struct BasicOffsetVertex {

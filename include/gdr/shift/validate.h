@@ -251,6 +251,7 @@ ShiftReport validate_shift(const H& scene, const BasicShift<H>& shift, const Shi
         Sampler s(SampleKey{o.seed, uint32_t(px), uint32_t(py), uint32_t(i)});
         s.set_dimension(dims::kFilm);
         trace_camera_path(scene, Vec2(float(px), float(py)) + s.next2d(), s, topt, x);
+        if (config.probabilistic) draw_classification_numbers(scene, s, topt.max_vertices, x);
         ++rep.sampled;
         if (x.size() < 3) continue;  // the camera and at least two hits
         ++rep.base_paths;
