@@ -20,6 +20,7 @@
 #include <fstream>
 #include <functional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -372,7 +373,13 @@ public:
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"value", 1, true}}; }
-    void sample(const Scene&, int x, int y, Sampler&, float* out, uint64_t& rays) const override {
+    // render() hands over one sample at a time (batch_size() is 1).
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+    }
+
+    void sample(const Scene&, int x, int y, Sampler&, float* out, uint64_t& rays) const {
         out[0] = (x == 1 && y == 2) ? std::nanf("") : float(x);
         ++rays;
     }
@@ -416,7 +423,13 @@ public:
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"a", 3, true}, {"b", 1, false}}; }
-    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const override {
+    // render() hands over one sample at a time (batch_size() is 1).
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+    }
+
+    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const {
         values(sampler, out);
         ++rays;
     }
@@ -465,7 +478,13 @@ public:
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"v", 1, true}}; }
-    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const override {
+    // render() hands over one sample at a time (batch_size() is 1).
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+    }
+
+    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const {
         out[0] = value(sampler);
         ++rays;
     }
@@ -680,22 +699,16 @@ TEST_CASE("trace_path: a camera ray into an emitter returns its radiance and fir
 }
 
 namespace {
-// Declares its slots and nothing else: overrides neither sample() nor sample_batch().
-class NoSamples final : public TiledIntegrator {
+// Declares its slots and nothing else: computes no sample.
+class NoSamples : public TiledIntegrator {
 public:
     std::string describe() const override { return ""; }
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"v", 1, false}}; }
 };
+// sample_batch() is the one way render() gets samples, and it is pure: an
+// integrator that computes none cannot be made (a compile-time error, where
+// it once was a render-time one).
+static_assert(std::is_abstract_v<NoSamples>);
 }  // namespace
-
-TEST_CASE("tiled integrators: one that computes no sample is refused with a named error", "[pt][tiled][errors]") {
-    auto scene = test::small_box("Original", 4);
-    NoSamples integ;
-    RenderSettings st;
-    st.spp = 1;
-    FrameBuffer fb;
-    CHECK_THROWS_WITH(static_cast<Integrator&>(integ).render(*scene, st, fb),
-                      Contains("overrides neither sample() nor sample_batch()"));
-}

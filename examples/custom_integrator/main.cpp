@@ -50,7 +50,13 @@ protected:
         radius_ = radius_param_ > 0.0 ? float(radius_param_) : 0.25f * scene.bounding_radius();
     }
 
-    void sample(const gdr::Scene& scene, int x, int y, gdr::Sampler& sampler, float* out, uint64_t& rays) const override {
+    // render() hands over one sample at a time (batch_size() is 1).
+    void sample_batch(const gdr::Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+    }
+
+    void sample(const gdr::Scene& scene, int x, int y, gdr::Sampler& sampler, float* out, uint64_t& rays) const {
         using namespace gdr;
         const Ray ray = scene.camera().generate_ray(Vec2(float(x), float(y)) + sampler.next2d());
         SurfaceInteraction si;

@@ -48,8 +48,14 @@ public:
 protected:
     std::vector<gdr::SlotSpec> slots() const override { return layout_.slots(); }
 
+    // render() hands over one sample at a time (batch_size() is 1).
+    void sample_batch(const gdr::Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+    }
+
     void sample(const gdr::Scene& scene, int x, int y, gdr::Sampler& sampler, float* out,
-                uint64_t& rays) const override {
+                uint64_t& rays) const {
         using namespace gdr;
         GradientRecord rec(out, layout_);
         sampler.set_dimension(dims::kFilm);

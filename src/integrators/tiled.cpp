@@ -107,15 +107,6 @@ struct TiledIntegrator::Buffers {
     }
 };
 
-void TiledIntegrator::sample(const Scene&, int, int, Sampler&, float*, uint64_t&) const {
-    throw RuntimeFailure("an integrator derived from TiledIntegrator overrides neither sample() nor sample_batch()");
-}
-
-void TiledIntegrator::sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
-                                   uint64_t& rays) const {
-    for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
-}
-
 int TiledIntegrator::batch_param(const Params& p, const std::string& who, int max_batch) {
     const long long batch = p.get_int("batch", max_batch);
     if (batch < 1 || batch > max_batch)

@@ -132,7 +132,7 @@ private:
     int splat_layers_ = 0;
 };
 
-/// Integrator skeleton: subclasses declare slots and implement sample().
+/// Integrator skeleton: subclasses declare slots and implement sample_batch().
 /// The accumulation buffers (per-pixel running means and squared deviations,
 /// 8 bytes a channel with a variance and 4 without) are kept from one render
 /// to the next while their size fits and is below kKeptBufferBytes: a frame
@@ -157,12 +157,6 @@ public:
 protected:
     /// The slots each sample writes, in order.
     virtual std::vector<SlotSpec> slots() const = 0;
-    /// Computes one sample of pixel (x, y) with `sampler` (already keyed to the
-    /// pixel and sample index) and writes all slots consecutively to `out`
-    /// (zero-initialised); adds the rays it cast to `rays`. An integrator
-    /// overrides this, or sample_batch() instead; the default throws
-    /// RuntimeFailure (neither was overridden).
-    virtual void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const;
     /// One sample to compute: its pixel and its sampler (keyed to the pixel
     /// and sample index).
     struct SampleJob {
@@ -171,24 +165,24 @@ protected:
         /// Where the sample's splats go (the tile's list) when the
         /// integrator has splat layers; nullptr otherwise.
         SplatList* splats = nullptr;
-        /// The sample's number within its pixel (0 where sample() made the job).
+        /// The sample's number within its pixel.
         uint32_t index = 0;
     };
-    /// Computes jobs[0..n) (n <= batch_size()), job i writing its slots to
-    /// out + i * stride (zero-initialised); adds the rays cast to `rays`. The
-    /// one entry point render() calls. The default calls sample() per job. An
-    /// integrator whose sample runs through more code than the instruction
-    /// cache holds overrides it to run the stages of several samples in turn;
-    /// results must not depend on n.
+    /// Computes jobs[0..n) (n <= batch_size(), so one at a time unless the
+    /// integrator asks for more), job i writing all its slots consecutively to
+    /// out + i * stride (zero-initialised) with its sampler (keyed to the
+    /// pixel and sample number); adds the rays cast to `rays`. The one entry
+    /// point render() calls. An integrator whose sample runs through more code
+    /// than the instruction cache holds takes several jobs and runs the stages
+    /// of all in turn; results must not depend on n.
     virtual void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
-                              uint64_t& rays) const;
+                              uint64_t& rays) const = 0;
     /// Number of splat layers (SplatList) the samples write, each three
     /// channels; 0 for an integrator that writes only its own pixel's slots.
     /// An integrator with splat layers implements sample_batch(), which is
     /// then always called, and reads them in finalize() (Accumulated::splat_mean).
     virtual int splat_layers() const { return 0; }
-    /// The most jobs render() passes to sample_batch() at once (1: sample() per
-    /// job; render() takes at most 16).
+    /// The most jobs render() passes to sample_batch() at once (at most 16).
     virtual int batch_size() const { return 1; }
     /// True if sample_batch() must be called even for one job at a time (an
     /// integrator that keys further samplers by the job's index); always
