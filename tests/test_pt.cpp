@@ -365,21 +365,26 @@ TEST_CASE("pt: 8 spp resumed by 8 more equals one 16 spp render", "[pt][determin
 }
 
 namespace {
+// The test integrators below compute one sample of one pixel at a time:
+// render() hands them one job at a time (batch_size() is 1).
+class OneSampleIntegrator : public TiledIntegrator {
+protected:
+    virtual void sample(const Scene& scene, int x, int y, Sampler& sampler, float* out, uint64_t& rays) const = 0;
+    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
+                      uint64_t& rays) const override {
+        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
+    }
+};
+
 // Writes NaN at pixel (1, 2), the pixel's x elsewhere: the render loop must
 // drop and report the NaNs and keep the rest.
-class NanAt12 final : public TiledIntegrator {
+class NanAt12 final : public OneSampleIntegrator {
 public:
     std::string describe() const override { return ""; }
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"value", 1, true}}; }
-    // render() hands over one sample at a time (batch_size() is 1).
-    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
-                      uint64_t& rays) const override {
-        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
-    }
-
-    void sample(const Scene&, int x, int y, Sampler&, float* out, uint64_t& rays) const {
+    void sample(const Scene&, int x, int y, Sampler&, float* out, uint64_t& rays) const override {
         out[0] = (x == 1 && y == 2) ? std::nanf("") : float(x);
         ++rays;
     }
@@ -413,7 +418,7 @@ TEST_CASE("tiled integrators: NaN samples are dropped, counted and located", "[p
 namespace {
 // Writes numbers of its own sampler: a slot "a" (3 channels, with variance)
 // and a slot "b" (1 channel, without). The test recomputes every sample.
-class SamplerEcho final : public TiledIntegrator {
+class SamplerEcho final : public OneSampleIntegrator {
 public:
     std::string describe() const override { return ""; }
     static void values(Sampler& s, float v[4]) {
@@ -423,13 +428,7 @@ public:
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"a", 3, true}, {"b", 1, false}}; }
-    // render() hands over one sample at a time (batch_size() is 1).
-    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
-                      uint64_t& rays) const override {
-        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
-    }
-
-    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const {
+    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const override {
         values(sampler, out);
         ++rays;
     }
@@ -471,20 +470,14 @@ TEST_CASE("tiled integrators: layers are the samples' means and unbiased per-sam
 namespace {
 // Writes 1000 plus a small uniform number of its sampler: a mean far above
 // the spread, where single-precision sums of squares lose the variance.
-class OffsetEcho final : public TiledIntegrator {
+class OffsetEcho final : public OneSampleIntegrator {
 public:
     std::string describe() const override { return ""; }
     static float value(Sampler& s) { return 1000.f + 0.01f * (s.next1d() - 0.5f); }
 
 protected:
     std::vector<SlotSpec> slots() const override { return {{"v", 1, true}}; }
-    // render() hands over one sample at a time (batch_size() is 1).
-    void sample_batch(const Scene& scene, SampleJob* jobs, int n, float* out, int stride,
-                      uint64_t& rays) const override {
-        for (int i = 0; i < n; ++i) sample(scene, jobs[i].x, jobs[i].y, jobs[i].sampler, out + size_t(i) * stride, rays);
-    }
-
-    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const {
+    void sample(const Scene&, int, int, Sampler& sampler, float* out, uint64_t& rays) const override {
         out[0] = value(sampler);
         ++rays;
     }

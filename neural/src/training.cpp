@@ -101,6 +101,11 @@ CameraDesc roam_view(const Scene& scene, const CameraDesc& base, float seen, int
     const Vec3 up = glm::normalize(base.up);
     const Vec3 fwd = glm::normalize(base.target - base.position);
     const float reach = 0.5f * (std::isfinite(seen) ? seen : glm::length(base.target - base.position));
+    // The scene camera's heading (f0, with s0 to its side) and elevation.
+    const Vec3 flat = fwd - glm::dot(fwd, up) * up;
+    if (glm::dot(flat, flat) < 1e-6f) return base;  // looking straight up or down: keep the scene's view
+    const Vec3 f0 = glm::normalize(flat), s0 = glm::cross(f0, up);
+    const float elev0 = std::asin(std::clamp(glm::dot(fwd, up), -1.f, 1.f));
     for (int attempt = 0; attempt < 100; ++attempt) {
         Vec3 v;
         do v = Vec3(u(rng), u(rng), u(rng));
@@ -109,10 +114,7 @@ CameraDesc roam_view(const Scene& scene, const CameraDesc& base, float seen, int
         d.position = base.position + reach * v;
         // Turned about up (yaw), then tilted towards up (pitch), clamped off the poles.
         const float yaw = glm::radians(60.f) * u(rng), pitch = glm::radians(20.f) * u(rng);
-        const Vec3 flat = fwd - glm::dot(fwd, up) * up;
-        if (glm::dot(flat, flat) < 1e-6f) return base;  // looking straight up or down: keep the scene's view
-        const Vec3 f0 = glm::normalize(flat), s0 = glm::cross(f0, up);
-        const float elev = std::clamp(std::asin(std::clamp(glm::dot(fwd, up), -1.f, 1.f)) + pitch, -1.3f, 1.3f);
+        const float elev = std::clamp(elev0 + pitch, -1.3f, 1.3f);
         const Vec3 h = std::cos(yaw) * f0 + std::sin(yaw) * s0;
         d.target = d.position + std::cos(elev) * h + std::sin(elev) * up;
         d.fov_deg = base.fov_deg * std::exp(l(rng));
@@ -165,8 +167,8 @@ private:
     Color tint_;
 };
 
-/// DatasetOptions::vary: the scene's geometry with recoloured materials and
-/// rescaled emitters, seen by `camera`.
+/// DatasetOptions::vary: the scene's geometry, environment and delta lights
+/// with recoloured materials and rescaled emitters, seen by `camera`.
 std::unique_ptr<Scene> varied_scene(const Scene& scene, const std::string& origin, const Camera& camera,
                                     std::mt19937_64& rng) {
     std::uniform_real_distribution<float> tint(0.45f, 1.f), light(0.6f, 1.f), scale(std::log(1.f / 3.f), std::log(3.f));
@@ -181,6 +183,7 @@ std::unique_ptr<Scene> varied_scene(const Scene& scene, const std::string& origi
         }
     }
     auto out = std::make_unique<Scene>(scene.mesh(), std::move(mats), camera, origin + " (varied)");
+    if (scene.environment()) out->set_environment(scene.shared_environment());
     if (!scene.delta_lights().empty()) out->set_delta_lights(scene.delta_lights(), origin);
     return out;
 }
@@ -359,7 +362,6 @@ DatasetReport generate_dataset(const DatasetOptions& o, const std::string& dir,
         if (vary) {
             std::mt19937_64 vary_rng(mix(mix(o.seed, uint64_t(i)), 0x76617279ull));  // "vary"
             varied = varied_scene(base, name, camera, vary_rng);
-            if (base.environment()) varied->set_environment(base.shared_environment());
         } else {
             base.set_camera(camera);
         }
