@@ -12,6 +12,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <sys/resource.h>
 #include <string>
@@ -20,6 +21,7 @@
 #include "gdr/core/error.h"
 #include "gdr/eval/plot.h"
 #include "gdr/io/exr.h"
+#include "gdr/io/png.h"
 #include "gdr/metrics.h"
 #include "gdr/neural/neural_reconstructor.h"
 #include "gdr/neural/training.h"
@@ -34,25 +36,33 @@ namespace {
 const char* kUsage = R"(usage:
   gdr_train data --out DIR --scenes A.json[,B.json...] [--crops 16] [--size 64]
                  [--spp 4,16,64] [--target-spp 1024] [--seed 1] [--threads 0] [--vary]
-                 [--meshes A.obj[,B.obj...]] [--roam] [--lenient]
+                 [--meshes A.obj[,B.obj...]] [--roam] [--lenient] [--target-integrator gpt|bdpt]
       Renders random views (gpt) into DIR/crop-NNNNN.exr; existing views are kept,
       so a stopped run continues. --vary recolours materials and emitters of odd
       views; --meshes stands one of the OBJs, in a random material, in views 2
       and 3 of every 4; --roam takes views from anywhere in the scene's open
       space, not only near its camera; --lenient loads Mitsuba scenes as
       'gdr render --lenient' does. A scene that does not load is skipped, named,
-      and its views are rendered by a later run once it loads.
+      and its views are rendered by a later run once it loads. The targets are
+      gpt's primal, or with --target-integrator bdpt bdpt's colour without the
+      emitters seen directly (fewer caustic fireflies at equal cost).
   gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
                   [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only | --poisson]
                   [--augment] [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
+                  [--init W.pt]
       Trains up to N steps in all, resuming from CKPT if it exists; writes CKPT
       every --every steps, CKPT.csv (step,loss[,validation loss]) and OUT.
       --poisson: the network also reads the poisson-l1 reconstruction and
       corrects it; --augment: random mirror images, transposes and colour
-      permutations of the samples.
-  gdr_train validate --data DIR --weights W [--threads 2]
-      relMSE (eps 0.01, per channel) of the noisy primal, poisson-l2, poisson-l1 and the
-      network against the targets, per sample count.
+      permutations of the samples; --init: a new run starts from these weights
+      (a trained network of the same shape) instead of random ones.
+  gdr_train validate --data DIR --weights W [--twin W2] [--threads 2] [--png OUT_DIR]
+      relMSE (eps 0.01, per channel) of the noisy primal, poisson-l2, poisson-l1,
+      poisson-weighted, the network and (--twin) a second network, e.g. the
+      primal-only twin, against the targets, per sample count, and the largest
+      deviation of the network's image mean from the target's. --png writes per
+      view a sheet, a row per sample count: input, network, poisson-l1,
+      poisson-weighted, (twin,) target, each under the target's exposure.
   gdr_train reconstruct IN.exr --weights W -o OUT.exr [--threads 2]
       The neural reconstruction (plus direct emitters) of a gpt render, as the
       layer "color" of OUT.exr.
@@ -137,7 +147,8 @@ struct Options {
 
 int data(int argc, char** argv) {
     const Options o(argc, argv,
-                    {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads", "--meshes"},
+                    {"--out", "--scenes", "--crops", "--size", "--spp", "--target-spp", "--seed", "--threads", "--meshes",
+                     "--target-integrator"},
                     {"--vary", "--roam", "--lenient"});
     DatasetOptions d;
     d.scenes = split(o.need("--scenes"));
@@ -151,6 +162,7 @@ int data(int argc, char** argv) {
     if (!o.get("--meshes").empty()) d.meshes = split(o.get("--meshes"));
     d.roam = o.flag("--roam");
     d.lenient = o.flag("--lenient");
+    if (!o.get("--target-integrator").empty()) d.target_integrator = o.get("--target-integrator");
     const auto t0 = std::chrono::steady_clock::now();
     const DatasetReport r = generate_dataset(d, o.need("--out"), [&](int done, int total) {
         const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -175,7 +187,7 @@ UNetConfig config_of(const Options& o) {
 int train(int argc, char** argv) {
     const Options o(argc, argv,
                     {"--data", "--checkpoint", "--steps", "--batch", "--lr", "--warmup", "--seed", "--widths", "--threads",
-                     "--every", "--weights", "--validation"},
+                     "--every", "--weights", "--validation", "--init"},
                     {"--primal-only", "--poisson", "--augment"});
     TrainOptions t;
     t.config = config_of(o);
@@ -193,6 +205,10 @@ int train(int argc, char** argv) {
     if (std::filesystem::exists(ckpt)) {
         trainer.load_checkpoint(ckpt);
         fmt::print(stderr, "train: resuming {} at step {}\n", ckpt, trainer.steps());
+    } else if (!o.get("--init").empty()) {
+        UNet init = load_weights(o.get("--init"));
+        trainer.start_from(init);
+        fmt::print(stderr, "train: starting from the weights of {}\n", o.get("--init"));
     }
     fmt::print(stderr, "train: {} parameters, {} steps of {} crops\n", trainer.net()->parameter_count(), steps, t.batch);
     std::map<long long, double> val_loss;
@@ -244,11 +260,59 @@ int train(int argc, char** argv) {
     return 0;
 }
 
+/// Mean of each colour channel of an image (radiance).
+Color channel_means(const Image& img) {
+    Color m(0.f);
+    double sum[3] = {0, 0, 0};
+    for (int y = 0; y < img.height(); ++y)
+        for (int x = 0; x < img.width(); ++x)
+            for (int c = 0; c < 3; ++c) sum[c] += img.at(x, y, c);
+    const double n = double(img.width()) * img.height();
+    for (int c = 0; c < 3; ++c) m[c] = float(sum[c] / n);
+    return m;
+}
+
+/// Largest relative difference of a channel mean from the target's (0.01 = 1%).
+double mean_deviation(const Image& img, const Image& target) {
+    const Color a = channel_means(img), b = channel_means(target);
+    double worst = 0.0;
+    for (int c = 0; c < 3; ++c)
+        if (b[c] > 0.f) worst = std::max(worst, std::abs(double(a[c]) / double(b[c]) - 1.0));
+    return worst;
+}
+
+/// One row of a side-by-side sheet: the panels of one sample count, each
+/// drawn at `scale` pixels per image pixel under the target's exposure, with
+/// its name and relMSE written above it.
+void draw_sheet_row(eval::Canvas& sheet, int y0, int scale, float exposure,
+                    const std::vector<std::pair<std::string, const Image*>>& panels, const Image& target) {
+    const eval::Rgb8 black{0, 0, 0};
+    const int label = eval::Canvas::text_height() + 6, gap = 6;
+    for (size_t k = 0; k < panels.size(); ++k) {
+        const Image& img = *panels[k].second;
+        const int x0 = gap + int(k) * (img.width() * scale + gap);
+        std::string text = panels[k].first;
+        if (&img != &target) text += fmt::format(" {:.3g}", relmse(img, target));
+        sheet.text(x0, y0 + 2, text, black);
+        const std::vector<uint8_t> px = preview_bytes(img, exposure);
+        const int ch = img.channels() == 1 ? 1 : img.channels() == 2 ? 3 : img.channels();
+        for (int y = 0; y < img.height() * scale; ++y)
+            for (int x = 0; x < img.width() * scale; ++x) {
+                const size_t i = (size_t(y / scale) * img.width() + size_t(x / scale)) * size_t(ch);
+                const eval::Rgb8 c = ch == 1 ? eval::Rgb8{px[i], px[i], px[i]} : eval::Rgb8{px[i], px[i + 1], px[i + 2]};
+                sheet.set(x0 + x, y0 + label + y, c);
+            }
+    }
+}
+
 int validate(int argc, char** argv) {
-    const Options o(argc, argv, {"--data", "--weights", "--threads"}, {});
+    const Options o(argc, argv, {"--data", "--weights", "--twin", "--threads", "--png"}, {});
     torch::set_num_threads(int(o.num("--threads", 2)));
     UNet net = load_weights(o.need("--weights"));
-    const std::string dir = o.need("--data");
+    std::optional<UNet> twin;
+    if (!o.get("--twin").empty()) twin = load_weights(o.get("--twin"));
+    const std::string dir = o.need("--data"), png_dir = o.get("--png");
+    if (!png_dir.empty()) std::filesystem::create_directories(png_dir);
     std::vector<std::string> files;
     for (const auto& e : std::filesystem::directory_iterator(dir))
         if (e.path().filename().string().rfind("crop-", 0) == 0) files.push_back(e.path().string());
@@ -256,39 +320,90 @@ int validate(int argc, char** argv) {
     if (files.empty()) throw InputError("validate: no crop-*.exr in " + dir);
     // Per view and sample count; the mean is dominated by a few views with
     // fireflies, so the median is printed too.
-    struct Values { std::vector<double> noisy, l2, l1, net; };
+    struct Values { std::vector<double> noisy, l2, l1, weighted, net, twin, bias; };
     std::map<int, Values> by_spp;
     for (const auto& f : files) {
         const FrameBuffer fb = read_exr(f);
-        for (const int s : split_ints(fb.metadata().at("spp"), "spp")) {
+        const Image& target = fb.get("target");
+        std::vector<int> levels;
+        try {
+            levels = split_ints(fb.metadata().at("spp"), "spp");
+        } catch (const std::exception&) {
+            throw InputError(f + ": not a gdr_train data set file (no 'spp' entry)");
+        }
+        // Scaled so that the sheet of a 96-pixel view is about 1000 pixels wide.
+        const int scale = std::max(1, 200 / std::max(1, target.width()));
+        const int panels = 4 + bool(twin) + fb.has(fmt::format("s{}_primal_variance", levels.at(0))), label = eval::Canvas::text_height() + 6, gap = 6;
+        eval::Canvas sheet(gap + panels * (target.width() * scale + gap),
+                           gap + int(levels.size()) * (target.height() * scale + label + gap));
+        // One exposure for every panel: the target's mean luminance at 0.18.
+        const Color tm = channel_means(target);
+        const float lum = 0.2126f * tm.r + 0.7152f * tm.g + 0.0722f * tm.b;
+        const float exposure = lum > 0.f ? std::log2(0.18f / lum) : 0.f;
+        for (size_t li = 0; li < levels.size(); ++li) {
+            const int s = levels[li];
             FrameBuffer frame(fb.width(), fb.height());
             for (const char* name : {"primal", "dx", "dy", "albedo", "normal", "depth"})
                 frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
             const GradientBuffers gb = gradient_buffers(frame);
-            const Image& target = fb.get("target");
+            const Image l1 = reconstruct("poisson-l1", Params("validate"), gb);
+            // Data sets made before the variance layers were kept have no weighted column.
+            const bool has_variance = fb.has(fmt::format("s{}_primal_variance", s));
+            if (has_variance)
+                for (const char* name : {"primal_variance", "dx_variance", "dy_variance", "spp"})
+                    frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
+            const Image weighted = has_variance ? reconstruct("poisson-weighted", Params("validate"), gradient_buffers(frame))
+                                                : Image();
+            const Image out = infer(net, gb);
             Values& v = by_spp[s];
             v.noisy.push_back(relmse(frame.get("primal"), target));
             v.l2.push_back(relmse(reconstruct("poisson-l2", Params("validate"), gb), target));
-            v.l1.push_back(relmse(reconstruct("poisson-l1", Params("validate"), gb), target));
-            v.net.push_back(relmse(infer(net, gb), target));
+            v.l1.push_back(relmse(l1, target));
+            if (has_variance) v.weighted.push_back(relmse(weighted, target));
+            v.net.push_back(relmse(out, target));
+            v.bias.push_back(mean_deviation(out, target));
+            Image twin_out;
+            if (twin) twin_out = infer(*twin, gb), v.twin.push_back(relmse(twin_out, target));
+            if (!png_dir.empty()) {
+                std::vector<std::pair<std::string, const Image*>> row = {
+                    {fmt::format("{} spp", s), &frame.get("primal")}, {"neural", &out}, {"l1", &l1}};
+                if (has_variance) row.push_back({"weighted", &weighted});
+                if (twin) row.push_back({"twin", &twin_out});
+                row.push_back({"target", &target});
+                draw_sheet_row(sheet, gap + int(li) * (target.height() * scale + label + gap), scale, exposure, row,
+                               target);
+            }
         }
+        if (!png_dir.empty())
+            sheet.write_png((std::filesystem::path(png_dir) / std::filesystem::path(f).stem()).string() + ".png");
     }
     const auto mean = [](const std::vector<double>& x) {
+        if (x.empty()) return std::numeric_limits<double>::quiet_NaN();
         double m = 0.0;
         for (double v : x) m += v / double(x.size());
         return m;
     };
+    // A column without values (no variance layers, no twin) prints as nan.
     const auto median = [](std::vector<double> x) {
+        if (x.empty()) return std::numeric_limits<double>::quiet_NaN();
         std::sort(x.begin(), x.end());
         return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
     };
     fmt::print("relMSE (eps 0.01, per channel) over {} views of {}: mean | median over views\n", files.size(), dir);
-    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>21} {:>16}\n", "spp", "noisy", "poisson-l2", "poisson-l1", "neural",
-               "neural/l1");
+    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>21} {:>21}{} {:>9} {:>9}\n", "spp", "noisy", "poisson-l2", "poisson-l1",
+               "poisson-weighted", "neural", twin ? fmt::format(" {:>21}", "twin") : "", "med n/l1", "mean dev");
     for (const auto& [s, v] : by_spp)
-        fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>7.3f} {:>8.3f}\n",
-                   s, mean(v.noisy), median(v.noisy), mean(v.l2), median(v.l2), mean(v.l1), median(v.l1), mean(v.net),
-                   median(v.net), mean(v.net) / mean(v.l1), median(v.net) / median(v.l1));
+        fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} "
+                   "{:>10.5f}{} {:>9.3f} {:>9.4f}\n",
+                   s, mean(v.noisy), median(v.noisy), mean(v.l2), median(v.l2), mean(v.l1), median(v.l1),
+                   mean(v.weighted), median(v.weighted), mean(v.net), median(v.net),
+                   twin ? fmt::format(" {:>10.5f} {:>10.5f}", mean(v.twin), median(v.twin)) : "",
+                   median(v.net) / median(v.l1), *std::max_element(v.bias.begin(), v.bias.end()));
+    fmt::print("(med n/l1: the network's median over poisson-l1's; mean dev: the largest relative difference of a "
+               "view's channel mean from the target's)\n");
+    if (!png_dir.empty())
+        fmt::print("side-by-side PNGs (per view, a row per sample count: input, neural, poisson-l1, poisson-weighted{}, "
+                   "target; relMSE above each) -> {}\n", twin ? ", twin" : "", png_dir);
     return 0;
 }
 

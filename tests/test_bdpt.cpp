@@ -99,6 +99,22 @@ TEST_CASE("bdpt: the images without light tracing's (2,1) strategy are rejected"
     CHECK(max_z(grey_stats(bd, "color", block), pt) > 4.5);
 }
 
+TEST_CASE("bdpt: hide_emitters estimates gpt's primal, which leaves the emitters seen directly out", "[bdpt][statistical]") {
+    // The McGuire box sees its ceiling lamp. gpt keeps directly visible
+    // emission in its `direct` layer, out of the primal; bdpt with
+    // hide_emitters leaves out paths of one segment. Same blocks, runs and
+    // bound as the test against pt above; measured largest |z| 1.8, and 49
+    // for the wrong variant below.
+    const int res = 24, block = 6, runs = 16;
+    const auto scene = small_box("Original", res);
+    const BlockStats primal = grey_stats(render_runs(*scene, "gpt", params({{"reconstruct", "none"}}), 16, runs, 100), "primal", block);
+    const BlockStats hidden = grey_stats(render_runs(*scene, "bdpt", params({{"hide_emitters", "true"}}), 16, runs, 200), "color", block);
+    CHECK(max_z(hidden, primal) < 4.5);
+    // The wrong variant: bdpt's full image holds the lamp.
+    const BlockStats full = grey_stats(render_runs(*scene, "bdpt", Params(), 16, runs, 200), "color", block);
+    CHECK(max_z(full, primal) > 4.5);
+}
+
 TEST_CASE("bdpt: each (s, t) strategy alone is unbiased for its path length", "[bdpt][statistical]") {
     // The reference for paths of exactly k segments is pt(max_depth k) minus
     // pt(max_depth k - 1) with the same seed (the two share every path up to

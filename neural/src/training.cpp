@@ -4,6 +4,7 @@
 #include "gdr/neural/training.h"
 
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -48,6 +49,9 @@ torch::Tensor read_optional(torch::serialize::InputArchive& ar, const std::strin
 }
 
 const char* const kFrameLayers[] = {"primal", "dx", "dy", "albedo", "normal", "depth"};
+// Kept beside them for the reconstructions that weigh by variance
+// (poisson-weighted in `gdr_train validate`); the network does not read them.
+const char* const kVarianceLayers[] = {"primal_variance", "dx_variance", "dy_variance", "spp"};
 
 torch::Tensor planar(const Image& img, int channels) {
     torch::Tensor t = torch::empty({img.height(), img.width(), channels}, torch::kFloat32);
@@ -302,6 +306,7 @@ struct DataScene {
     CameraDesc camera;           ///< The scene's own camera.
     float seen = kInf;           ///< Median probe distance of that camera (DatasetOptions::roam).
     std::unique_ptr<Integrator> gpt;  ///< With the scene file's integrator parameters.
+    std::unique_ptr<Integrator> reference;  ///< The targets' integrator (DatasetOptions::target_integrator).
 };
 
 }  // namespace
@@ -311,6 +316,8 @@ DatasetReport generate_dataset(const DatasetOptions& o, const std::string& dir,
     if (o.scenes.empty()) throw ParameterError("data set: no scenes given");
     if (o.crops < 1 || o.size < 2 || o.spp.empty() || o.target_spp < 1)
         throw ParameterError("data set: crops >= 1, size >= 2, at least one spp and target_spp >= 1 are needed");
+    if (o.target_integrator != "gpt" && o.target_integrator != "bdpt")
+        throw ParameterError("data set: the target integrator must be gpt or bdpt, got '" + o.target_integrator + "'");
     fs::create_directories(dir);
     DatasetReport report;
     std::map<size_t, DataScene> scenes;
@@ -351,6 +358,12 @@ DatasetReport generate_dataset(const DatasetOptions& o, const std::string& dir,
             for (const auto& [k, v] : ds.file.defaults.params.values()) gp.set(k, v);
             gp.set("reconstruct", std::string("none"));
             ds.gpt = integrator_registry().create("gpt", gp);
+            if (o.target_integrator == "bdpt") {
+                Params bp(name + " (data set target)");
+                for (const auto& [k, v] : ds.file.defaults.params.values()) bp.set(k, v);
+                bp.set("hide_emitters", true);
+                ds.reference = integrator_registry().create("bdpt", bp);
+            }
             scenes.emplace(si, std::move(ds));
         }
         DataScene& ds = scenes.at(si);
@@ -379,13 +392,19 @@ DatasetReport generate_dataset(const DatasetOptions& o, const std::string& dir,
         st.threads = o.threads;
         FrameBuffer out(o.size, o.size), fb;
         st.spp = o.target_spp, st.seed = mix(mix(o.seed, uint64_t(i)), 0);
-        ds.gpt->render(scene, st, fb);
-        out.set("target", fb.get("primal"));
+        if (ds.reference) {
+            ds.reference->render(scene, st, fb);
+            out.set("target", fb.get("color"));
+        } else {
+            ds.gpt->render(scene, st, fb);
+            out.set("target", fb.get("primal"));
+        }
         std::string levels;
         for (int s : o.spp) {
             st.spp = s, st.seed = mix(mix(o.seed, uint64_t(i)), uint64_t(s));
             ds.gpt->render(scene, st, fb);
             for (const char* layer : kFrameLayers) out.set(fmt::format("s{}_{}", s, layer), fb.get(layer));
+            for (const char* layer : kVarianceLayers) out.set(fmt::format("s{}_{}", s, layer), fb.get(layer));
             levels += (levels.empty() ? "" : ",") + std::to_string(s);
         }
         out.metadata()["scene"] = name;
@@ -396,6 +415,7 @@ DatasetReport generate_dataset(const DatasetOptions& o, const std::string& dir,
         }
         out.metadata()["spp"] = levels;
         out.metadata()["target_spp"] = std::to_string(o.target_spp);
+        out.metadata()["target_integrator"] = o.target_integrator;
         if (o.roam) out.metadata()["view"] = "roam";
         if (!ds.file.warnings.empty()) out.metadata()["load_warnings"] = std::to_string(ds.file.warnings.size());
         // Written aside and renamed: an interrupted view leaves no file that looks finished.
@@ -536,6 +556,19 @@ Trainer::Trainer(const TrainOptions& options, std::vector<Sample> samples)
     net_ = UNet(options_.config);
     optimizer_ = std::make_unique<torch::optim::Adam>(
         net_->parameters(), torch::optim::AdamOptions(options_.learning_rate).betas({0.9, 0.99}));
+}
+
+void Trainer::start_from(UNet& trained) {
+    if (step_ != 0) throw ParameterError("training: start_from() after the first step");
+    const UNetConfig& a = trained->config();
+    const UNetConfig& b = options_.config;
+    if (!(a == b))
+        throw ParameterError(fmt::format("training: the starting network has {} inputs and widths {}, this run {} and {}",
+                                         input_channels(a), fmt::join(a.widths, ","), input_channels(b),
+                                         fmt::join(b.widths, ",")));
+    torch::NoGradGuard guard;
+    const auto from = trained->named_parameters();
+    for (auto& p : net_->named_parameters()) p.value().copy_(from[p.key()]);
 }
 
 double Trainer::step() {

@@ -271,6 +271,34 @@ TEST_CASE("training is deterministic and a resumed run equals an uninterrupted o
     REQUIRE(a_straight.losses()[1] != straight.losses()[1]);
 }
 
+TEST_CASE("a run started from a trained network's weights starts as that network", "[neural][train]") {
+    torch::set_num_threads(1);
+    TrainOptions t;
+    t.config = tiny();
+    t.batch = 2;
+    t.seed = 7;
+    const std::vector<Sample> set = synthetic_set(3, 12, 10, t.config, 300);
+    Trainer source(t, set);
+    for (int i = 0; i < 3; ++i) source.step();
+    TrainOptions other_seed = t;
+    other_seed.seed = 8;
+    Trainer tuned(other_seed, set);
+    REQUIRE_FALSE(same_parameters(source.net(), tuned.net()));
+    tuned.start_from(source.net());
+    REQUIRE(same_parameters(source.net(), tuned.net()));
+    // The copy is the starting point, not a link: training it leaves the source as it was.
+    Trainer copy(t, set);
+    copy.start_from(source.net());
+    tuned.step();
+    REQUIRE(same_parameters(source.net(), copy.net()));
+    REQUIRE_FALSE(same_parameters(source.net(), tuned.net()));
+    REQUIRE_THROWS_WITH(tuned.start_from(source.net()), Catch::Contains("after the first step"));
+    TrainOptions wider = t;
+    wider.config.widths.back() += 2;
+    Trainer mismatched(wider, synthetic_set(3, 12, 10, wider.config, 300));
+    REQUIRE_THROWS_WITH(mismatched.start_from(source.net()), Catch::Contains("widths"));
+}
+
 TEST_CASE("the shipped models load and reconstruct odd-sized frames to finite images", "[neural]") {
     torch::set_num_threads(1);
     Registry<Reconstructor> reg("reconstructor");

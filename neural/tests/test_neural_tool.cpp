@@ -390,6 +390,50 @@ TEST_CASE("a scene that does not load leaves its views out, named, and a later r
     CHECK(mean_of(v1.get("target")) > 0.0);
 }
 
+TEST_CASE("bdpt targets: a data set's targets can come from bdpt, and its name is checked", "[neural][data]") {
+    // What bdpt's targets estimate (gpt's primal) is tested in test_bdpt.cpp;
+    // here: the data set uses it, says so, and the inputs are still gpt's.
+    const TempDir gpt_dir("target-gpt"), bdpt_dir("target-bdpt");
+    neural::DatasetOptions d = box_views(1, 8, 16, 5);
+    neural::generate_dataset(d, gpt_dir.path.string());
+    d.target_integrator = "bdpt";
+    neural::generate_dataset(d, bdpt_dir.path.string());
+    const FrameBuffer g = read_exr(gpt_dir("crop-00000.exr")), b = read_exr(bdpt_dir("crop-00000.exr"));
+    CHECK(g.metadata().at("target_integrator") == "gpt");
+    CHECK(b.metadata().at("target_integrator") == "bdpt");
+    CHECK(b.get("s2_primal").values() == g.get("s2_primal").values());
+    CHECK(b.get("target").values() != g.get("target").values());
+    for (float v : b.get("target").values()) REQUIRE(std::isfinite(v));
+    d.target_integrator = "pt";
+    const TempDir bad("target-bad");
+    REQUIRE_THROWS_WITH(neural::generate_dataset(d, bad.path.string()), Contains("'pt'"));
+}
+
+TEST_CASE("gdr_train validate prints every reconstruction's error and draws each view side by side", "[neural][cli]") {
+    const TempDir dir("validate");
+    neural::DatasetOptions d = box_views(2, 8, 16, 9);
+    d.spp = {2, 4};
+    neural::generate_dataset(d, dir("views"));
+    const std::string primal_model = GDR_SOURCE_DIR "/neural/models/unet-v2-primal.pt";
+    const test::ToolRun r = test::run_tool(GDR_TRAIN, {"validate", "--data", dir("views"), "--weights", kShippedModel,
+                                                       "--twin", primal_model, "--threads", "1", "--png", dir("sheets")},
+                                           dir("validate.log"));
+    INFO(r.output);
+    REQUIRE(r.status == 0);
+    for (const char* column : {"poisson-l1", "poisson-weighted", "neural", "twin", "mean dev"})
+        CHECK_THAT(r.output, Contains(column));
+    // One sheet per view: 6 panels of 8 pixels drawn 25 times larger, a row per sample count.
+    for (const char* view : {"crop-00000.png", "crop-00001.png"}) {
+        std::ifstream png(dir("sheets/" + std::string(view)), std::ios::binary);
+        REQUIRE(png);
+        unsigned char h[24];
+        png.read(reinterpret_cast<char*>(h), 24);
+        const auto be32 = [&](int at) { return (uint32_t(h[at]) << 24) | (h[at + 1] << 16) | (h[at + 2] << 8) | h[at + 3]; };
+        CHECK(be32(16) == 6 + 6 * (8 * 25 + 6));
+        CHECK(be32(20) > 2 * 8 * 25);
+    }
+}
+
 TEST_CASE("roaming views stand in the scene's open space and see it from a distance", "[neural][data]") {
     // The Cornell box's camera stands before its open side: views moved up to
     // half the distance it sees, turned and tilted, must not end behind a

@@ -36,6 +36,7 @@ public:
             only_ = *c;
         }
         strategy_layers_ = p.get_bool("strategy_layers", false);
+        hide_emitters_ = p.get_bool("hide_emitters", false);
         batch_ = batch_param(p, "bdpt", 16);
         if (strategy_layers_)
             for (int n = 2; n <= kStrategyLayerDepth + 1; ++n)
@@ -51,7 +52,8 @@ public:
     std::string describe() const override {
         return "max_depth=" + std::to_string(max_depth_) + "\nrr_depth=" + std::to_string(rr_depth_) +
                "\nmis=" + (heuristic_ == MisHeuristic::Power ? "power" : "balance") + "\nstrategy=" + strategy_ +
-               "\nstrategy_layers=" + (strategy_layers_ ? "true" : "false") + "\n";
+               "\nstrategy_layers=" + (strategy_layers_ ? "true" : "false") +
+               (hide_emitters_ ? "\nhide_emitters=true" : "") + "\n";
     }
 
 protected:
@@ -82,6 +84,9 @@ protected:
                 for (int s = 0; s <= s_max; ++s) {
                     const int verts = s + t;
                     if (verts < 2 || (s == 1 && t == 1)) continue;
+                    // Paths of one segment are the directly visible emitters;
+                    // (0, 2) is the only strategy left that samples them.
+                    if (hide_emitters_ && verts == 2) continue;
                     if (max_depth_ > 0 && verts - 1 > max_depth_) break;
                     if (!wanted(s, t)) continue;
                     const bool weighted = mode_ == Mode::All;
@@ -168,6 +173,7 @@ private:
         int index = 0;  // slot among the strategy slots, or splat layer
     };
     int max_depth_ = -1, rr_depth_ = 5;
+    bool hide_emitters_ = false;
     MisHeuristic heuristic_ = MisHeuristic::Power;
     std::string strategy_ = "all";  // the parameter as given (describe())
     // What it selects: every strategy MIS-weighted, light tracing alone, or only_ alone.

@@ -44,6 +44,11 @@ struct DatasetOptions {
     int size = 64;                    ///< Width and height of a view (pixels).
     std::vector<int> spp{4, 16, 64};  ///< Sample counts of the noisy frames of each view.
     int target_spp = 1024;            ///< Sample count of each view's target.
+    /// Integrator of the targets: "gpt" (its primal) or "bdpt" (its colour
+    /// without the directly visible emitters, which gpt's primal leaves out
+    /// too). bdpt's light tracing finds the caustics that leave fireflies in
+    /// gpt's targets, at about half of gpt's cost per sample.
+    std::string target_integrator = "gpt";
     uint64_t seed = 1;                ///< Seed of the views and of the renders.
     int threads = 0;                  ///< Render threads (0 = all cores).
     /// Procedural variation: every odd-numbered view also recolours the
@@ -158,6 +163,10 @@ public:
     UNet& net() { return net_; }
     /// Writes weights, optimiser state, step count, losses and options to `path`.
     void save_checkpoint(const std::string& path);
+    /// Starts from the weights of a trained network of the same shape instead
+    /// of random ones (fine-tuning; call before the first step); ParameterError
+    /// saying which if the shapes differ. The optimiser starts afresh, warm-up included.
+    void start_from(UNet& trained);
     /// Continues from `path`; InputError naming the file if it is unreadable
     /// or ParameterError naming the option if it was made with other options.
     void load_checkpoint(const std::string& path);
