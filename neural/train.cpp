@@ -47,13 +47,15 @@ const char* kUsage = R"(usage:
       gpt's primal, or with --target-integrator bdpt bdpt's colour without the
       emitters seen directly (fewer caustic fireflies at equal cost).
   gdr_train train --data DIR --checkpoint CKPT --steps N [--batch 8] [--lr 5e-4]
-                  [--warmup 100] [--seed 1] [--widths 16,32,48,64] [--primal-only | --poisson]
+                  [--warmup 100] [--seed 1] [--widths 16,32,48,64]
+                  [--primal-only | --poisson | --poisson-weighted]
                   [--augment] [--threads 2] [--every 50] [--weights OUT] [--validation DIR]
                   [--init W.pt]
       Trains up to N steps in all, resuming from CKPT if it exists; writes CKPT
       every --every steps, CKPT.csv (step,loss[,validation loss]) and OUT.
       --poisson: the network also reads the poisson-l1 reconstruction and
-      corrects it; --augment: random mirror images, transposes and colour
+      corrects it; --poisson-weighted: the same with poisson-weighted's (the
+      default final image; needs data sets with the variance layers); --augment: random mirror images, transposes and colour
       permutations of the samples; --init: a new run starts from these weights
       (a trained network of the same shape) instead of random ones.
   gdr_train validate --data DIR --weights W [--twin W2] [--threads 2] [--png OUT_DIR]
@@ -66,7 +68,7 @@ const char* kUsage = R"(usage:
   gdr_train reconstruct IN.exr --weights W -o OUT.exr [--threads 2]
       The neural reconstruction (plus direct emitters) of a gpt render, as the
       layer "color" of OUT.exr.
-  gdr_train time [--widths 16,32,48,64] [--primal-only | --poisson] [--size 1280x720]
+  gdr_train time [--widths 16,32,48,64] [--primal-only | --poisson | --poisson-weighted] [--size 1280x720]
                  [--threads 2] [--repeat 3]
       Seconds per forward pass of an untrained network of that shape on random
       input (without --poisson's poisson-l1 solve; bench_reconstruct times it all).
@@ -179,8 +181,10 @@ UNetConfig config_of(const Options& o) {
     UNetConfig c;
     if (!o.get("--widths").empty()) c.widths = split_ints(o.get("--widths"), "--widths");
     c.gradients = !o.flag("--primal-only");
-    c.poisson = o.flag("--poisson");
-    if (c.poisson && !c.gradients) throw ParameterError("gdr_train: --poisson and --primal-only exclude each other");
+    c.weighted = o.flag("--poisson-weighted");
+    c.poisson = o.flag("--poisson") || c.weighted;
+    if (c.poisson && !c.gradients)
+        throw ParameterError("gdr_train: --poisson (or --poisson-weighted) and --primal-only exclude each other");
     return c;
 }
 
@@ -188,7 +192,7 @@ int train(int argc, char** argv) {
     const Options o(argc, argv,
                     {"--data", "--checkpoint", "--steps", "--batch", "--lr", "--warmup", "--seed", "--widths", "--threads",
                      "--every", "--weights", "--validation", "--init"},
-                    {"--primal-only", "--poisson", "--augment"});
+                    {"--primal-only", "--poisson", "--poisson-weighted", "--augment"});
     TrainOptions t;
     t.config = config_of(o);
     t.augment = o.flag("--augment");
@@ -345,15 +349,14 @@ int validate(int argc, char** argv) {
             FrameBuffer frame(fb.width(), fb.height());
             for (const char* name : {"primal", "dx", "dy", "albedo", "normal", "depth"})
                 frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
-            const GradientBuffers gb = gradient_buffers(frame);
-            const Image l1 = reconstruct("poisson-l1", Params("validate"), gb);
             // Data sets made before the variance layers were kept have no weighted column.
             const bool has_variance = fb.has(fmt::format("s{}_primal_variance", s));
             if (has_variance)
                 for (const char* name : {"primal_variance", "dx_variance", "dy_variance", "spp"})
                     frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
-            const Image weighted = has_variance ? reconstruct("poisson-weighted", Params("validate"), gradient_buffers(frame))
-                                                : Image();
+            const GradientBuffers gb = gradient_buffers(frame);
+            const Image l1 = reconstruct("poisson-l1", Params("validate"), gb);
+            const Image weighted = has_variance ? reconstruct("poisson-weighted", Params("validate"), gb) : Image();
             const Image out = infer(net, gb);
             Values& v = by_spp[s];
             v.noisy.push_back(relmse(frame.get("primal"), target));
@@ -447,7 +450,8 @@ int reconstruct_file(int argc, char** argv) {
 }
 
 int time_inference(int argc, char** argv) {
-    const Options o(argc, argv, {"--widths", "--size", "--threads", "--repeat"}, {"--primal-only", "--poisson"});
+    const Options o(argc, argv, {"--widths", "--size", "--threads", "--repeat"},
+                    {"--primal-only", "--poisson", "--poisson-weighted"});
     const UNetConfig c = config_of(o);
     int W = 1280, H = 720;
     if (const std::string s = o.get("--size"); !s.empty() && std::sscanf(s.c_str(), "%dx%d", &W, &H) != 2)
@@ -465,10 +469,12 @@ int time_inference(int argc, char** argv) {
     std::uniform_real_distribution<float> u(0.f, 1.f);
     FrameBuffer fb(W, H);
     for (const auto& [name, ch] : std::vector<std::pair<std::string, int>>{
-             {"primal", 3}, {"dx", 3}, {"dy", 3}, {"albedo", 3}, {"normal", 3}, {"depth", 1}}) {
+             {"primal", 3}, {"dx", 3}, {"dy", 3}, {"albedo", 3}, {"normal", 3}, {"depth", 1},
+             {"primal_variance", 3}, {"dx_variance", 3}, {"dy_variance", 3}}) {
         Image& img = fb.add(name, ch);
         for (float& v : img.values()) v = u(rng);
     }
+    for (float& v : fb.add("spp", 1).values()) v = 16.f;
     const GradientBuffers gb = gradient_buffers(fb);
     // CPU seconds of the process: on a machine shared with other work, CPU
     // time / threads bounds the wall time the run would take alone.

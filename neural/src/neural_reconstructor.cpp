@@ -32,12 +32,17 @@ public:
     std::string describe() const override {
         std::ostringstream os;
         os << "gradients=" << ((*net_)->config().gradients ? "true" : "false") << "\nthreads=" << threads_
-           << "\npoisson=" << ((*net_)->config().poisson ? "true" : "false") << "\nweights=" << weights_ << "\nwidths=";
+           << "\npoisson=" << ((*net_)->config().poisson ? ((*net_)->config().weighted ? "weighted" : "true") : "false")
+           << "\nweights=" << weights_ << "\nwidths=";
         for (size_t i = 0; i < (*net_)->config().widths.size(); ++i) os << (i ? "," : "") << (*net_)->config().widths[i];
         os << "\n";
         return os.str();
     }
-    std::vector<std::string> required_layers() const override { return {"albedo", "normal", "depth"}; }
+    std::vector<std::string> required_layers() const override {
+        if ((*net_)->config().weighted)
+            return {"albedo", "normal", "depth", "primal_variance", "dx_variance", "dy_variance", "spp"};
+        return {"albedo", "normal", "depth"};
+    }
 
 protected:
     Image solve(const GradientBuffers& in) const override {

@@ -460,6 +460,14 @@ std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& confi
                 if (!fb.has(layer)) throw InputError(f + ": missing layer '" + layer + "'");
                 frame.set(name, fb.get(layer));
             }
+            if (config.weighted)
+                for (const char* name : kVarianceLayers) {
+                    const std::string layer = fmt::format("s{}_{}", s, name);
+                    if (!fb.has(layer))
+                        throw InputError(f + ": missing layer '" + layer +
+                                         "' (the weighted Poisson input needs it; render the data set again)");
+                    frame.set(name, fb.get(layer));
+                }
             samples.push_back(make_sample(gradient_buffers(frame), fb.get("target"), config, s));
         }
     }
@@ -562,7 +570,9 @@ void Trainer::start_from(UNet& trained) {
     if (step_ != 0) throw ParameterError("training: start_from() after the first step");
     const UNetConfig& a = trained->config();
     const UNetConfig& b = options_.config;
-    if (!(a == b))
+    // The shape, not what the inputs hold: a network of the L1 Poisson input
+    // can start one of the weighted input, whose first channels are alike.
+    if (a.widths != b.widths || input_channels(a) != input_channels(b))
         throw ParameterError(fmt::format("training: the starting network has {} inputs and widths {}, this run {} and {}",
                                          input_channels(a), fmt::join(a.widths, ","), input_channels(b),
                                          fmt::join(b.widths, ",")));
@@ -632,6 +642,7 @@ void Trainer::save_checkpoint(const std::string& path) {
     ar.write("option_relmse_weight", torch::tensor(options_.relmse_weight, torch::kFloat64));
     ar.write("option_seed", torch::tensor(int64_t(options_.seed)));
     ar.write("option_poisson", torch::tensor(int64_t(options_.config.poisson)));
+    ar.write("option_weighted", torch::tensor(int64_t(options_.config.weighted)));
     ar.write("option_augment", torch::tensor(int64_t(options_.augment)));
     const std::string tmp = path + ".partial";
     ar.save_to(tmp);
@@ -641,7 +652,7 @@ void Trainer::save_checkpoint(const std::string& path) {
 void Trainer::load_checkpoint(const std::string& path) {
     if (!fs::is_regular_file(path)) throw InputError("checkpoint " + path + " does not exist");
     torch::serialize::InputArchive ar, net_ar, opt_ar;
-    torch::Tensor step, losses, widths, gradients, batch, lr, warmup, relw, seed, poisson, augment;
+    torch::Tensor step, losses, widths, gradients, batch, lr, warmup, relw, seed, poisson, weighted, augment;
     try {
         ar.load_from(path);
         step = read_tensor(ar, "step");
@@ -655,6 +666,7 @@ void Trainer::load_checkpoint(const std::string& path) {
         seed = read_tensor(ar, "option_seed");
         // Added later: a checkpoint without them was made with both off.
         poisson = read_optional(ar, "option_poisson");
+        weighted = read_optional(ar, "option_weighted");
         augment = read_optional(ar, "option_augment");
     } catch (const std::exception& e) {
         const std::string what = e.what();
@@ -677,6 +689,7 @@ void Trainer::load_checkpoint(const std::string& path) {
     differs("relmse_weight", fmt::format("{}", relw.item<double>()), fmt::format("{}", options_.relmse_weight));
     differs("seed", std::to_string(uint64_t(seed.item<int64_t>())), std::to_string(options_.seed));
     differs("poisson", std::to_string(poisson.item<int64_t>()), std::to_string(int(options_.config.poisson)));
+    differs("weighted", std::to_string(weighted.item<int64_t>()), std::to_string(int(options_.config.weighted)));
     differs("augment", std::to_string(augment.item<int64_t>()), std::to_string(int(options_.augment)));
     try {
         ar.read("net", net_ar);

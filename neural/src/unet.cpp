@@ -25,9 +25,10 @@ nn::Conv2d conv(int in, int out, int kernel, int stride = 1) {
 torch::Tensor act(const torch::Tensor& x) { return torch::leaky_relu(x, 0.01); }
 
 // The format tag of a weights file; bumped if the layout of the layers
-// changes. Format 2 added the Poisson input (gdr_unet_poisson); format 1
-// files are networks without it and are still read.
-constexpr int64_t kFormat = 2;
+// changes. Format 2 added the Poisson input (gdr_unet_poisson), format 3 its
+// weighted form (gdr_unet_weighted); older files are networks without them
+// and are still read.
+constexpr int64_t kFormat = 3;
 
 /// A tensor entry of an archive. (InputArchive::read into a Tensor calls
 /// .device() on its argument, which fails on an undefined tensor.)
@@ -44,6 +45,8 @@ std::string first_line(const std::string& s) { return s.substr(0, s.find('\n'));
 int input_channels(const UNetConfig& config) {
     if (config.poisson && !config.gradients)
         throw ParameterError("U-Net: the Poisson input needs the gradient inputs (poisson without gradients)");
+    if (config.weighted && !config.poisson)
+        throw ParameterError("U-Net: the weighted Poisson input needs the Poisson input (weighted without poisson)");
     return config.poisson ? 19 : config.gradients ? 16 : 10;
 }
 
@@ -141,8 +144,10 @@ torch::Tensor make_input(const GradientBuffers& in, const UNetConfig& config) {
         // infer()'s caller adds the directly visible emitters afterwards.
         GradientBuffers solve_in = in;
         solve_in.direct = nullptr;
-        poisson = reconstruct("poisson-l1", Params("neural input"), solve_in);
-        sources.push_back({&poisson, 3, Kind::colour, "poisson-l1 reconstruction"});
+        const char* method = config.weighted ? "poisson-weighted" : "poisson-l1";
+        poisson = reconstruct(method, Params("neural input"), solve_in);
+        sources.push_back({&poisson, 3, Kind::colour, config.weighted ? "poisson-weighted reconstruction"
+                                                                      : "poisson-l1 reconstruction"});
     }
     sources.push_back({in.primal, 3, Kind::colour, "primal"});
     if (config.gradients) sources.push_back({in.dx, 3, Kind::dx, "dx"}), sources.push_back({in.dy, 3, Kind::dy, "dy"});
@@ -215,6 +220,7 @@ void save_weights(UNet& net, const std::string& path) {
     ar.write("gdr_unet_widths", torch::tensor(widths));
     ar.write("gdr_unet_gradients", torch::tensor(int64_t(net->config().gradients)));
     ar.write("gdr_unet_poisson", torch::tensor(int64_t(net->config().poisson)));
+    ar.write("gdr_unet_weighted", torch::tensor(int64_t(net->config().weighted)));
     net->save(ar);
     // Written next to the target and renamed: a reader never sees half a file.
     const std::string tmp = path + ".partial";
@@ -245,6 +251,7 @@ UNet load_weights(const std::string& path) {
         for (int64_t i = 0; i < widths.numel(); ++i) cfg.widths.push_back(int(widths[i].item<int64_t>()));
         cfg.gradients = gradients.item<int64_t>() != 0;
         cfg.poisson = fmt_was >= 2 && read_tensor(ar, "gdr_unet_poisson").item<int64_t>() != 0;
+        cfg.weighted = fmt_was >= 3 && read_tensor(ar, "gdr_unet_weighted").item<int64_t>() != 0;
         UNet net(cfg);
         // torch's reader replaces each tensor without comparing shapes: compare them here.
         std::vector<std::pair<std::string, std::vector<int64_t>>> expect;

@@ -271,6 +271,71 @@ TEST_CASE("training is deterministic and a resumed run equals an uninterrupted o
     REQUIRE(a_straight.losses()[1] != straight.losses()[1]);
 }
 
+TEST_CASE("the weighted Poisson-input network reads poisson-weighted's reconstruction and starts as it", "[neural]") {
+    torch::set_num_threads(1);
+    UNetConfig cfg = tiny();
+    cfg.poisson = cfg.weighted = true;
+    REQUIRE(input_channels(cfg) == 19);
+    UNetConfig bad = cfg;
+    bad.poisson = false;
+    REQUIRE_THROWS_WITH(input_channels(bad), Catch::Contains("needs the Poisson input"));
+    FrameBuffer fb = noisy_frame(clean_image(13, 9, 60), 0.5f, 62);
+    // Variances that differ across the frame, so that the weighted solve is
+    // not the L1 solve (checked below).
+    std::mt19937 rng(63);
+    std::uniform_real_distribution<float> u(0.01f, 1.f);
+    for (const char* name : {"primal_variance", "dx_variance", "dy_variance"})
+        for (float& v : fb.add(name, 3).values()) v = u(rng);
+    fb.add("spp", 1).values().assign(13 * 9, 8.f);
+    fb.add("direct", 3).values().assign(13 * 9 * 3, 0.25f);
+    const GradientBuffers gb = gradient_buffers(fb);
+    GradientBuffers no_direct = gb;
+    no_direct.direct = nullptr;
+    const Image weighted = reconstruct("poisson-weighted", Params("test"), no_direct);
+    const Image l1 = reconstruct("poisson-l1", Params("test"), no_direct);
+    double differs = 0.0;
+    for (size_t i = 0; i < l1.values().size(); ++i) differs = std::max(differs, double(std::abs(l1.values()[i] - weighted.values()[i])));
+    REQUIRE(differs > 1e-3);
+    const torch::Tensor x = make_input(gb, cfg);
+    for (int y = 0; y < 9; ++y)
+        for (int xx = 0; xx < 13; ++xx)
+            for (int c = 0; c < 3; ++c)
+                REQUIRE(x[0][c][kMargin + y][kMargin + xx].item<float>() ==
+                        Approx(std::log1p(std::max(0.f, weighted.at(xx, y, c)))).margin(1e-6));
+    // Untrained: the reconstruction is poisson-weighted's; the file keeps the
+    // configuration, and the reconstructor asks for the variance layers.
+    torch::manual_seed(3);
+    UNet net(cfg);
+    const TempDir dir("weighted");
+    save_weights(net, dir.file("w.pt"));
+    REQUIRE(load_weights(dir.file("w.pt"))->config() == cfg);
+    Registry<Reconstructor> reg("reconstructor");
+    register_neural_reconstructor(reg);
+    Params p("test");
+    p.set("weights", dir.file("w.pt"));
+    p.set("threads", 1LL);
+    const auto rec = reg.create("neural", p);
+    REQUIRE_THAT(rec->describe(), Catch::Contains("poisson=weighted"));
+    const auto needs = rec->required_layers();
+    REQUIRE(std::find(needs.begin(), needs.end(), "primal_variance") != needs.end());
+    const Image out = rec->reconstruct(gb);
+    for (int y = 0; y < 9; ++y)
+        for (int xx = 0; xx < 13; ++xx)
+            for (int c = 0; c < 3; ++c)
+                REQUIRE(out.at(xx, y, c) == Approx(std::max(0.f, weighted.at(xx, y, c)) + 0.25f).epsilon(1e-5).margin(1e-6));
+    // A network of the L1 input can start a run of the weighted one (same shape).
+    TrainOptions t;
+    t.config = cfg;
+    t.batch = 1;
+    UNetConfig l1_cfg = cfg;
+    l1_cfg.weighted = false;
+    torch::manual_seed(4);
+    UNet l1_net(l1_cfg);
+    Trainer tuned(t, {make_sample(gb, fb.get("primal"), cfg, 8)});
+    tuned.start_from(l1_net);
+    REQUIRE(same_parameters(tuned.net(), l1_net));
+}
+
 TEST_CASE("a run started from a trained network's weights starts as that network", "[neural][train]") {
     torch::set_num_threads(1);
     TrainOptions t;

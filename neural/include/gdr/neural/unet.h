@@ -46,6 +46,13 @@ struct UNetConfig {
     /// integrate gradients across the frame; the screened Poisson solve does,
     /// and the network learns what that solve gets wrong.
     bool poisson = false;
+    /// True (needs poisson): that input, and the image the output corrects,
+    /// is poisson-weighted's reconstruction (the variance-weighted screened
+    /// Poisson solve, gdr's default final image) instead of poisson-l1's; the
+    /// frame then needs the variance layers gpt writes. The network starts
+    /// from the best solve there is, one that keeps improving with samples,
+    /// and learns what it still gets wrong.
+    bool weighted = false;
 
     /// Same shape (same widths and inputs).
     bool operator==(const UNetConfig&) const = default;
@@ -96,7 +103,7 @@ int padded_size(int size, int levels);
 /// channel index, or -1 if absent); the first three channels are always the
 /// encoded colour the output corrects.
 struct InputLayout {
-    int poisson = -1;  ///< Encoded poisson-l1 reconstruction (3 channels).
+    int poisson = -1;  ///< Encoded poisson-l1 (or poisson-weighted) reconstruction (3 channels).
     int primal = 0;    ///< Encoded primal (3).
     int dx = -1;       ///< Signed-log dx (3).
     int dy = -1;       ///< Signed-log dy (3).
@@ -108,8 +115,9 @@ struct InputLayout {
 InputLayout input_layout(const UNetConfig& config);
 
 /// The network input [1, C, H', W'] of one frame, padded as the file comment
-/// says, in the order of input_layout(): the encoded poisson-l1
-/// reconstruction of primal, dx and dy (if config.poisson), the encoded
+/// says, in the order of input_layout(): the encoded poisson-l1 (or, if
+/// config.weighted, poisson-weighted) reconstruction of primal, dx and dy
+/// (if config.poisson), the encoded
 /// primal, dx, dy (if config.gradients; the unused last column of dx and last
 /// row of dy are zeroed), albedo (clamped to [0, 1]), normal, and depth
 /// divided by the frame's largest depth. Needs the layers "albedo" (3
