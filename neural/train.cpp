@@ -324,7 +324,7 @@ int validate(int argc, char** argv) {
     if (files.empty()) throw InputError("validate: no crop-*.exr in " + dir);
     // Per view and sample count; the mean is dominated by a few views with
     // fireflies, so the median is printed too.
-    struct Values { std::vector<double> noisy, l2, l1, weighted, net, twin, bias; };
+    struct Values { std::vector<double> noisy, l2, l1, weighted, net, twin, bias, weighted_bias; };
     std::map<int, Values> by_spp;
     for (const auto& f : files) {
         const FrameBuffer fb = read_exr(f);
@@ -362,7 +362,8 @@ int validate(int argc, char** argv) {
             v.noisy.push_back(relmse(frame.get("primal"), target));
             v.l2.push_back(relmse(reconstruct("poisson-l2", Params("validate"), gb), target));
             v.l1.push_back(relmse(l1, target));
-            if (has_variance) v.weighted.push_back(relmse(weighted, target));
+            if (has_variance)
+                v.weighted.push_back(relmse(weighted, target)), v.weighted_bias.push_back(mean_deviation(weighted, target));
             v.net.push_back(relmse(out, target));
             v.bias.push_back(mean_deviation(out, target));
             Image twin_out;
@@ -393,17 +394,20 @@ int validate(int argc, char** argv) {
         return x.size() % 2 ? x[x.size() / 2] : 0.5 * (x[x.size() / 2 - 1] + x[x.size() / 2]);
     };
     fmt::print("relMSE (eps 0.01, per channel) over {} views of {}: mean | median over views\n", files.size(), dir);
-    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>21} {:>21}{} {:>9} {:>9}\n", "spp", "noisy", "poisson-l2", "poisson-l1",
-               "poisson-weighted", "neural", twin ? fmt::format(" {:>21}", "twin") : "", "med n/l1", "mean dev");
+    fmt::print("{:>6} {:>21} {:>21} {:>21} {:>21} {:>21}{} {:>9} {:>9} {:>9}\n", "spp", "noisy", "poisson-l2",
+               "poisson-l1", "poisson-weighted", "neural", twin ? fmt::format(" {:>21}", "twin") : "", "med n/l1",
+               "mean dev", "w dev");
     for (const auto& [s, v] : by_spp)
         fmt::print("{:>6} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} {:>10.5f} "
-                   "{:>10.5f}{} {:>9.3f} {:>9.4f}\n",
+                   "{:>10.5f}{} {:>9.3f} {:>9.4f} {:>9.4f}\n",
                    s, mean(v.noisy), median(v.noisy), mean(v.l2), median(v.l2), mean(v.l1), median(v.l1),
                    mean(v.weighted), median(v.weighted), mean(v.net), median(v.net),
                    twin ? fmt::format(" {:>10.5f} {:>10.5f}", mean(v.twin), median(v.twin)) : "",
-                   median(v.net) / median(v.l1), *std::max_element(v.bias.begin(), v.bias.end()));
-    fmt::print("(med n/l1: the network's median over poisson-l1's; mean dev: the largest relative difference of a "
-               "view's channel mean from the target's)\n");
+                   median(v.net) / median(v.l1), *std::max_element(v.bias.begin(), v.bias.end()),
+                   v.weighted_bias.empty() ? std::numeric_limits<double>::quiet_NaN()
+                                           : *std::max_element(v.weighted_bias.begin(), v.weighted_bias.end()));
+    fmt::print("(med n/l1: the network's median over poisson-l1's; mean dev, w dev: the largest relative difference "
+               "of a view's channel mean from the target's, of the network's and of poisson-weighted's image)\n");
     if (!png_dir.empty())
         fmt::print("side-by-side PNGs (per view, a row per sample count: input, neural, poisson-l1, poisson-weighted{}, "
                    "target; relMSE above each) -> {}\n", twin ? ", twin" : "", png_dir);
