@@ -326,7 +326,7 @@ struct Equal {
 
 // The primal-only network of row pt-neural-primal, unless --neural-primal-set weights= says otherwise:
 // the committed twin of the shipped model (same data and training, no gradient inputs).
-const char* const kPrimalModel = GDR_SOURCE_DIR "/neural/models/unet-v2-primal.pt";
+const char* const kPrimalModel = GDR_SOURCE_DIR "/neural/models/unet-v4-primal.pt";
 
 // The fixed methods; the poisson-weighted rows (--weighted) follow them.
 constexpr int kNumFixed = 7;

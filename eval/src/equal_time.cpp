@@ -18,13 +18,14 @@ namespace gdr::eval {
 std::unique_ptr<Scene> load_scene_at_width(const std::string& path, int width) {
     if (width < 1) throw ParameterError("load_scene_at_width: width must be >= 1");
     SceneFile sf = load_scene_file(path);
-    const Scene& s = *sf.scene;
-    CameraDesc d = s.camera().desc();
+    CameraDesc d = sf.scene->camera().desc();
     const double aspect = double(d.height) / double(d.width);
     d.height = std::max(1, int(std::lround(width * aspect)));
     d.width = width;
-    // The Scene keeps its own copies, so the loaded one can go.
-    return std::make_unique<Scene>(s.mesh(), s.materials(), Camera(d), path);
+    // The loaded scene itself, with its environment and delta lights (a copy
+    // of its mesh and materials alone rendered an envmap-lit room black).
+    sf.scene->set_camera(Camera(d));
+    return std::move(sf.scene);
 }
 
 uint64_t hash_file(const std::string& path) {

@@ -28,7 +28,7 @@ step("reconstruct" ${CMAKE_COMMAND} -E env --unset=GDR_PLUGIN_PATH
      "${gdr}" reconstruct "${WORK_DIR}/gpt.exr" --method neural -o "${WORK_DIR}/neural.exr")
 step("info" "${gdr}" info "${WORK_DIR}/neural.exr")
 # The default weights are the installed copy of the shipped model.
-string(FIND "${step_output}" "weights=${WORK_DIR}/moved/share/gdr/neural/unet-v2.pt" at)
+string(FIND "${step_output}" "weights=${WORK_DIR}/moved/share/gdr/neural/unet-v4.pt" at)
 if(at EQUAL -1)
   message(FATAL_ERROR "installed plugin: the reconstruction did not use the installed model:\n${step_output}")
 endif()

@@ -368,8 +368,9 @@ TEST_CASE("the shipped models load and reconstruct odd-sized frames to finite im
     torch::set_num_threads(1);
     Registry<Reconstructor> reg("reconstructor");
     register_neural_reconstructor(reg);
-    // unet-v2 (shipped) has the Poisson input and unet-v2-primal is its
-    // primal-only twin. A format-1 file (written before the Poisson input
+    // unet-v4 (shipped) has the weighted Poisson input and unet-v4-primal is
+    // its primal-only twin; unet-v2 has the L1 Poisson input, unet-v2-primal
+    // is its twin. A format-1 file (written before the Poisson input
     // existed, without its entry) is read as a network without it: one is
     // written here, as save_weights wrote them then.
     TempDir dir("format1");
@@ -387,7 +388,9 @@ TEST_CASE("the shipped models load and reconstruct odd-sized frames to finite im
     struct Case {
         std::string file, gradients, poisson;
     };
-    for (const Case& c : {Case{models + "unet-v2.pt", "gradients=true", "poisson=true"},
+    for (const Case& c : {Case{models + "unet-v4.pt", "gradients=true", "poisson=weighted"},
+                          Case{models + "unet-v4-primal.pt", "gradients=false", "poisson=false"},
+                          Case{models + "unet-v2.pt", "gradients=true", "poisson=true"},
                           Case{models + "unet-v2-primal.pt", "gradients=false", "poisson=false"},
                           Case{dir.file("format1.pt"), "gradients=true", "poisson=false"}}) {
         INFO(c.file);
@@ -399,7 +402,11 @@ TEST_CASE("the shipped models load and reconstruct odd-sized frames to finite im
                                           Catch::Contains(c.poisson));
         for (auto [w, h] : {std::pair{1, 1}, std::pair{7, 13}, std::pair{21, 10}}) {
             INFO(w << "x" << h);
-            const FrameBuffer fb = noisy_frame(clean_image(w, h, 30), 0.3f, 31);
+            FrameBuffer fb = noisy_frame(clean_image(w, h, 30), 0.3f, 31);
+            // The variances gpt writes (the weighted Poisson input reads them).
+            for (const char* name : {"primal_variance", "dx_variance", "dy_variance"})
+                fb.add(name, 3).values().assign(size_t(w) * h * 3, 0.05f);
+            fb.add("spp", 1).values().assign(size_t(w) * h, 4.f);
             const Image out = rec->reconstruct(gradient_buffers(fb));
             REQUIRE(out.width() == w);
             REQUIRE(out.height() == h);

@@ -14,8 +14,9 @@
 
 namespace gdr::eval {
 
-/// Loads a JSON scene file and rebuilds its scene with the same camera pose at
-/// `width` pixels across, height scaled to keep the aspect ratio (at least 1).
+/// Loads a scene file (JSON or Mitsuba XML) with its camera set to the same
+/// pose at `width` pixels across, height scaled to keep the aspect ratio (at
+/// least 1); its lights and environment are kept.
 /// Benchmarks need this because the files' 512-1280 px cameras cost too much
 /// time per sample pass. Throws what load_scene_file throws.
 std::unique_ptr<Scene> load_scene_at_width(const std::string& path, int width);
