@@ -1,5 +1,5 @@
 #!/bin/bash
-# The data sets of unet-v4 (neural/README.md, "unet-v4"): training views of the
+# The data sets of unet-v4 (neural/README.md, "The shipped model"): training views of the
 # public Mitsuba 0.6 scenes and of the bundled scenes, and validation views of
 # two interiors that no training view or variant shows (living-room,
 # dining-room) and of veach-bidir.

@@ -1,6 +1,6 @@
 #!/bin/bash
 # Trains unet-v4 and its primal-only twin on the data of make-data-v4.sh, side
-# by side with one thread each (neural/README.md, "unet-v4").
+# by side with one thread each (neural/README.md, "The shipped model").
 #
 #   neural/data/train-v4.sh DATA_DIR RUN_DIR [STEPS]
 #
