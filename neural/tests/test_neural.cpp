@@ -87,10 +87,33 @@ std::vector<Sample> synthetic_set(int count, int w, int h, const UNetConfig& cfg
 }
 
 /// Tiny network of two levels: fast enough for a unit test.
+/// The neural reconstructor of a weights file, on one torch thread.
+std::unique_ptr<Reconstructor> neural_reconstructor(const std::string& weights) {
+    static Registry<Reconstructor> reg = [] {
+        Registry<Reconstructor> r("reconstructor");
+        register_neural_reconstructor(r);
+        return r;
+    }();
+    Params p("test");
+    p.set("weights", weights);
+    p.set("threads", 1LL);
+    return reg.create("neural", p);
+}
+
 UNetConfig tiny() {
     UNetConfig c;
     c.widths = {8, 12};
     return c;
+}
+
+/// Training options of tiny() with `batch` crops and `seed`, on one torch thread.
+TrainOptions tiny_training(int batch, uint64_t seed) {
+    torch::set_num_threads(1);
+    TrainOptions t;
+    t.config = tiny();
+    t.batch = batch;
+    t.seed = seed;
+    return t;
 }
 
 bool same_parameters(UNet& a, UNet& b) {
@@ -222,12 +245,8 @@ TEST_CASE("a few training steps on a tiny synthetic set reduce its loss", "[neur
 }
 
 TEST_CASE("training is deterministic and a resumed run equals an uninterrupted one bit for bit", "[neural][train]") {
-    torch::set_num_threads(1);
-    TrainOptions t;
-    t.config = tiny();
-    t.batch = 3;
+    TrainOptions t = tiny_training(3, 5);
     t.warmup = 2;
-    t.seed = 5;
     const std::vector<Sample> set = synthetic_set(4, 12, 10, t.config, 200);
     const TempDir dir("resume");
     Trainer straight(t, set);
@@ -309,12 +328,7 @@ TEST_CASE("the weighted Poisson-input network reads poisson-weighted's reconstru
     const TempDir dir("weighted");
     save_weights(net, dir.file("w.pt"));
     REQUIRE(load_weights(dir.file("w.pt"))->config() == cfg);
-    Registry<Reconstructor> reg("reconstructor");
-    register_neural_reconstructor(reg);
-    Params p("test");
-    p.set("weights", dir.file("w.pt"));
-    p.set("threads", 1LL);
-    const auto rec = reg.create("neural", p);
+    const auto rec = neural_reconstructor(dir.file("w.pt"));
     REQUIRE_THAT(rec->describe(), Catch::Contains("poisson=weighted"));
     const auto needs = rec->required_layers();
     REQUIRE(std::find(needs.begin(), needs.end(), "primal_variance") != needs.end());
@@ -337,11 +351,7 @@ TEST_CASE("the weighted Poisson-input network reads poisson-weighted's reconstru
 }
 
 TEST_CASE("a run started from a trained network's weights starts as that network", "[neural][train]") {
-    torch::set_num_threads(1);
-    TrainOptions t;
-    t.config = tiny();
-    t.batch = 2;
-    t.seed = 7;
+    const TrainOptions t = tiny_training(2, 7);
     const std::vector<Sample> set = synthetic_set(3, 12, 10, t.config, 300);
     Trainer source(t, set);
     for (int i = 0; i < 3; ++i) source.step();
@@ -552,12 +562,7 @@ TEST_CASE("the Poisson-input network reads the poisson-l1 reconstruction and sta
     UNet net(cfg);
     const TempDir dir("poisson");
     save_weights(net, dir.file("p.pt"));
-    Registry<Reconstructor> reg("reconstructor");
-    register_neural_reconstructor(reg);
-    Params p("test");
-    p.set("weights", dir.file("p.pt"));
-    p.set("threads", 1LL);
-    const auto rec = reg.create("neural", p);
+    const auto rec = neural_reconstructor(dir.file("p.pt"));
     REQUIRE_THAT(rec->describe(), Catch::Contains("poisson=true"));
     const Image out = rec->reconstruct(gb);
     for (int y = 0; y < 9; ++y)
