@@ -346,14 +346,9 @@ int validate(int argc, char** argv) {
         const float exposure = lum > 0.f ? std::log2(0.18f / lum) : 0.f;
         for (size_t li = 0; li < levels.size(); ++li) {
             const int s = levels[li];
-            FrameBuffer frame(fb.width(), fb.height());
-            for (const char* name : {"primal", "dx", "dy", "albedo", "normal", "depth"})
-                frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
+            const FrameBuffer frame = view_frame(fb, s);
             // Data sets made before the variance layers were kept have no weighted column.
-            const bool has_variance = fb.has(fmt::format("s{}_primal_variance", s));
-            if (has_variance)
-                for (const char* name : {"primal_variance", "dx_variance", "dy_variance", "spp"})
-                    frame.set(name, fb.get(fmt::format("s{}_{}", s, name)));
+            const bool has_variance = frame.has("primal_variance");
             const GradientBuffers gb = gradient_buffers(frame);
             const Image l1 = reconstruct("poisson-l1", Params("validate"), gb);
             const Image weighted = has_variance ? reconstruct("poisson-weighted", Params("validate"), gb) : Image();

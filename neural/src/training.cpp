@@ -435,6 +435,19 @@ Sample make_sample(const GradientBuffers& noisy, const Image& target, const UNet
     return Sample{make_input(noisy, config)[0].clone(), planar(target, 3), spp};
 }
 
+FrameBuffer view_frame(const FrameBuffer& view, int spp) {
+    FrameBuffer frame(view.width(), view.height());
+    for (const char* name : kFrameLayers) {
+        const std::string layer = fmt::format("s{}_{}", spp, name);
+        if (!view.has(layer)) throw InputError("missing layer '" + layer + "'");
+        frame.set(name, view.get(layer));
+    }
+    // All or none: data sets made before they were kept have none.
+    if (view.has(fmt::format("s{}_{}", spp, kVarianceLayers[0])))
+        for (const char* name : kVarianceLayers) frame.set(name, view.get(fmt::format("s{}_{}", spp, name)));
+    return frame;
+}
+
 std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& config) {
     std::vector<std::string> files;
     if (fs::is_directory(dir))
@@ -454,20 +467,15 @@ std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& confi
             const size_t comma = std::min(list.find(',', pos), list.size());
             const int s = std::stoi(list.substr(pos, comma - pos));
             pos = comma + 1;
-            FrameBuffer frame(fb.width(), fb.height());
-            for (const char* name : kFrameLayers) {
-                const std::string layer = fmt::format("s{}_{}", s, name);
-                if (!fb.has(layer)) throw InputError(f + ": missing layer '" + layer + "'");
-                frame.set(name, fb.get(layer));
+            FrameBuffer frame;
+            try {
+                frame = view_frame(fb, s);
+            } catch (const InputError& e) {
+                throw InputError(f + ": " + e.what());
             }
-            if (config.weighted)
-                for (const char* name : kVarianceLayers) {
-                    const std::string layer = fmt::format("s{}_{}", s, name);
-                    if (!fb.has(layer))
-                        throw InputError(f + ": missing layer '" + layer +
-                                         "' (the weighted Poisson input needs it; render the data set again)");
-                    frame.set(name, fb.get(layer));
-                }
+            if (config.weighted && !frame.has("primal_variance"))
+                throw InputError(f + ": missing layer 's" + std::to_string(s) +
+                                 "_primal_variance' (the weighted Poisson input needs it; render the data set again)");
             samples.push_back(make_sample(gradient_buffers(frame), fb.get("target"), config, s));
         }
     }

@@ -82,16 +82,6 @@ FrameBuffer gpt_render(const std::string& scene, int w, int h, int spp, uint64_t
     return fb;
 }
 
-/// The gpt frame of one sample count `spp` of a data set view: the layers a
-/// reconstructor reads, the variances the weighted solve and input need included.
-FrameBuffer frame_at(const FrameBuffer& view, int spp) {
-    FrameBuffer frame(view.width(), view.height());
-    for (const char* name : {"primal", "dx", "dy", "albedo", "normal", "depth", "primal_variance", "dx_variance",
-                             "dy_variance", "spp"})
-        frame.set(name, view.get(fmt::format("s{}_{}", spp, name)));
-    return frame;
-}
-
 /// relMSE (eps 0.01, per channel) of poisson-l1, poisson-weighted and `net`
 /// summed over views `views` of the data set in `dir` at each sample count of
 /// `spp`, and one line per (view, count) for the test's message.
@@ -106,7 +96,7 @@ GuardSums guard_sums(const std::string& dir, const std::vector<int>& views, cons
         const FrameBuffer fb = read_exr(fmt::format("{}/crop-{:05d}.exr", dir, v));
         const Image& target = fb.get("target");
         for (int s : spp) {
-            const FrameBuffer frame = frame_at(fb, s);
+            const FrameBuffer frame = neural::view_frame(fb, s);
             const GradientBuffers gb = gradient_buffers(frame);
             const double l1 = relmse(reconstruct("poisson-l1", Params("test"), gb), target);
             const double w = relmse(reconstruct("poisson-weighted", Params("test"), gb), target);

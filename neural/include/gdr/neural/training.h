@@ -107,6 +107,11 @@ DatasetReport generate_dataset(const DatasetOptions& options, const std::string&
 /// (gradients or not); InputError naming the file if one is malformed or none exists.
 std::vector<Sample> load_dataset(const std::string& dir, const UNetConfig& config);
 
+/// The frame of sample count `spp` of a data-set view (its layers sSPP_*):
+/// primal, dx, dy, albedo, normal and depth (InputError naming a missing
+/// one), and the variance layers where the view has them.
+FrameBuffer view_frame(const FrameBuffer& view, int spp);
+
 /// The sample of one frame given as buffers (needs albedo, normal, depth).
 Sample make_sample(const GradientBuffers& noisy, const Image& target, const UNetConfig& config, int spp);
 
