@@ -18,7 +18,12 @@
 #include <cstddef>
 #include <vector>
 
+#include "gdr/detail/large_alloc.h"
+
 namespace gdr::detail {
+
+/// A frame-sized work plane (see gdr/detail/large_alloc.h for why not plain std::vector<float>).
+using Plane = std::vector<float, LargeAllocator<float>>;
 
 /// sum a[i] b[i] in double. Four independent accumulators let the compiler
 /// vectorise without -ffast-math (a single accumulator is a serial chain).
@@ -58,12 +63,12 @@ private:
     struct Level {
         int w = 0, h = 0;
         const float *d = nullptr, *ex = nullptr, *ey = nullptr;  // operator (owned storage below for coarse levels)
-        std::vector<float> d_own, ex_own, ey_own;
-        std::vector<float> diag, inv_diag;  // full diagonal of A and its inverse
+        Plane d_own, ex_own, ey_own;
+        Plane diag, inv_diag;  // full diagonal of A and its inverse
         const float* b = nullptr;           // right-hand side (planar, channels)
         float* x = nullptr;                 // solution (planar, channels)
-        std::vector<float> b_own, x_own;    // storage for coarse levels
-        std::vector<float> xs;              // pre-smoothing values (read by the fused post-smoothing)
+        Plane b_own, x_own;    // storage for coarse levels
+        Plane xs;              // pre-smoothing values (read by the fused post-smoothing)
     };
     void cycle(std::size_t level, int channels);
     void coarsest_solve(Level& L, int channels);

@@ -32,10 +32,13 @@
 
 #include "gdr/core/cancel.h"
 #include "gdr/core/error.h"
+#include "gdr/detail/large_alloc.h"
 #include "multigrid.h"
 
 namespace gdr {
 namespace {
+
+using detail::Plane;
 
 constexpr int kBlockRows = 8;  // rows per parallel task; fixed so reductions are deterministic
 
@@ -248,7 +251,7 @@ bool all_finite(const float* v, size_t n) {
 /// colour weight; wx / wy are zero on the dropped rows, so stencils need no
 /// special case for them. Their overall scale is arbitrary (it cancels).
 struct OpWeights {
-    std::vector<float> a0w0, wx, wy;
+    Plane a0w0, wx, wy;
     double mean_a0w0 = 0, mean_gradient = 0;  // for the DCT preconditioner (set_weight_means)
 };
 
@@ -265,7 +268,7 @@ struct Workspace {
     Shape s;
     double alpha;
     double scale;  // the problem's values are `scale` times those of the copies c, gx, gy (and x)
-    std::vector<float> c, gx, gy, x, r, z, p, p2, q;
+    Plane c, gx, gy, x, r, z, p, p2, q;
     OpWeights W;
     std::unique_ptr<DctSolver> dct;
     detail::WeightedMultigrid mg;
@@ -572,7 +575,7 @@ bool bound_start_gradients(Workspace& ws, bool apply) {
         };
         // Largest channel of g's row y over pixels [0, count) against `bound`;
         // shortens the rows beyond it if `apply`. Returns whether any is.
-        auto check = [&](std::vector<float>& g, int y, int count) {
+        auto check = [&](Plane& g, int y, int count) {
             std::fill(gm, gm + count, 0.f);
             for (int ch = 0; ch < C; ++ch) {
                 const float* gr = g.data() + ch * s.n + size_t(y) * w;
@@ -746,7 +749,7 @@ CgReport run_cg(Workspace& ws, OpWeights& W, const CgOptions& opt, const Sums* i
 void set_row_weights(const Shape& s, const RowWeights& rw, double alpha, OpWeights& W) {
     if (rw.primal.size() != s.n || rw.dx.size() != s.n || rw.dy.size() != s.n)
         throw ParameterError("poisson_weighted: every weight array must hold width * height values");
-    W.a0w0.resize(s.n), W.wx = rw.dx, W.wy = rw.dy;
+    W.a0w0.resize(s.n), W.wx.assign(rw.dx.begin(), rw.dx.end()), W.wy.assign(rw.dy.begin(), rw.dy.end());
     double s0 = 0, sg = 0, ng = 0;
     for (size_t k = 0; k < s.n; ++k) {
         const int x = int(k % s.w), y = int(k / s.w);
@@ -949,7 +952,7 @@ L1Report poisson_l1(const PoissonProblem& prob, const L1Options& opt, float* out
     cg.preconditioner = opt.preconditioner;
     // The start sees outlier gradients shortened (kStartRelative); ordinary
     // inputs have none, and then nothing is copied.
-    std::vector<float> full_gx, full_gy;
+    Plane full_gx, full_gy;
     const bool bounded = bound_start_gradients(ws, false);
     if (bounded) {
         full_gx = ws.gx, full_gy = ws.gy;
