@@ -9,6 +9,7 @@
 #include <filesystem>
 
 #include "gdr/core/error.h"
+#include "tensor_memory.h"
 
 namespace gdr::neural {
 namespace {
@@ -62,6 +63,7 @@ InputLayout input_layout(const UNetConfig& config) {
 }
 
 UNetImpl::UNetImpl(const UNetConfig& config) : config_(config) {
+    use_large_page_tensors();
     const auto& w = config_.widths;
     if (w.empty() || w.size() > 8)
         throw ParameterError("U-Net: 1 to 8 levels, got " + std::to_string(w.size()));
@@ -145,7 +147,14 @@ torch::Tensor make_input(const GradientBuffers& in, const UNetConfig& config) {
         GradientBuffers solve_in = in;
         solve_in.direct = nullptr;
         const char* method = config.weighted ? "poisson-weighted" : "poisson-l1";
-        poisson = reconstruct(method, Params("neural input"), solve_in);
+        // The weighted solve with 40 CG iterations instead of its default
+        // 100 (a tenth of that per IRLS step): on a 1280x720 living-room
+        // render at 2 spp its image differs from the default's by a relMSE
+        // of 1.1e-5 (the network's own error there is above 1e-2) and it
+        // takes about 0.9 s less.
+        Params solve_params("neural input");
+        if (config.weighted) solve_params.set("cg_iterations", 40LL);
+        poisson = reconstruct(method, solve_params, solve_in);
         sources.push_back({&poisson, 3, Kind::colour, config.weighted ? "poisson-weighted reconstruction"
                                                                       : "poisson-l1 reconstruction"});
     }
@@ -204,7 +213,11 @@ Image infer(UNet& net, const GradientBuffers& in) {
         throw InputError("neural reconstruction needs a 3-channel primal, got " + std::to_string(in.primal->channels()));
     torch::InferenceMode guard;
     const int W = in.primal->width(), H = in.primal->height();
-    torch::Tensor y = net->forward(make_input(in, net->config()));
+    // Channels-last (NHWC) input: libtorch then runs the convolutions through
+    // oneDNN's direct kernels, 2-3x faster at these narrow widths than its
+    // NCHW path (measured at 1280x720 on two cores); the values are the same
+    // up to the order of float sums.
+    torch::Tensor y = net->forward(make_input(in, net->config()).contiguous(torch::MemoryFormat::ChannelsLast));
     y = decode_colour(y.slice(2, kMargin, kMargin + H).slice(3, kMargin, kMargin + W));
     // [1, 3, H, W] -> interleaved H x W x 3.
     y = y[0].permute({1, 2, 0}).contiguous();
