@@ -11,10 +11,15 @@
 // Monte Carlo noise; the seams act as edges), or a synthetic noisy image if
 // the shared reference outputs are absent.
 //
-// Usage: bench_reconstruct [--reps N] [--with-reference] [--no-neural]
+// Usage: bench_reconstruct [--reps N] [--with-reference] [--no-neural] [--frame FILE.exr]
 //   --with-reference  also runs the reference's own L1 preset (20 IRLS x 50
 //                     plain CG from the primal; ~15 CPU-seconds) for its energy.
 //   --no-neural       leaves the neural reconstructor's timing out.
+//   --frame FILE.exr  instead: a render's own layers (e.g. `gdr render ... --integrator
+//                     gpt --set reconstruct=none`, with its variance and feature
+//                     layers) timed with poisson-l1, poisson-weighted and the
+//                     neural reconstructor, against the 2 s budget of a 1280x720
+//                     frame scaled to the frame's pixel count.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -111,11 +116,60 @@ PoissonProblem problem_of(const GradientFrame& f, double alpha) {
     return PoissonProblem{v(f.primal), v(f.dx), v(f.dy), alpha};
 }
 
+/// Loads the plugins of the build tree (or GDR_PLUGIN_PATH); "" if the neural
+/// reconstructor is there, else why not.
+std::string load_neural_plugin() {
+    // libtorch's OpenMP threads wait passively, as the gdr tool sets them.
+    setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
+    const PluginLoad plugin = load_plugins_from(plugin_path_dirs({GDR_PLUGIN_BUILD_DIR}));
+    if (reconstructor_registry().has("neural")) return "";
+    std::string why = "its plugin is not built (it needs libtorch)";
+    for (const auto& [file, reason] : plugin.skipped) why = file + ": " + reason;
+    return why;
+}
+
+/// --frame: the reconstructions of one real render, timed in one process.
+int run_frame(const std::string& path, int reps, bool with_neural) {
+    const FrameBuffer fb = read_exr(path);
+    const GradientBuffers in = gradient_buffers(fb);
+    const int W = fb.width(), H = fb.height();
+    const double budget = 2.0 * double(W) * H / (1280.0 * 720.0);
+    std::printf("reconstruction of a render's own layers: %s (%dx%d)\n", path.c_str(), W, H);
+    std::printf("threads: %d (TBB default concurrency); times: median of %d runs after one untimed, wall (process CPU)\n",
+                tbb::info::default_concurrency(), reps);
+    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+        double l1 = 0;
+        if (std::fscanf(f, "%lf", &l1) == 1) std::printf("load average (1 min) at start: %.2f\n", l1);
+        std::fclose(f);
+    }
+    std::vector<std::string> methods = {"poisson-l1", "poisson-weighted"};
+    if (with_neural) {
+        const std::string why = load_neural_plugin();
+        if (why.empty()) methods.push_back("neural");
+        else std::printf("neural: not measured: %s\n", why.c_str());
+    }
+    std::printf("\ntimes\n");
+    for (const std::string& m : methods) {
+        const auto r = reconstructor_registry().create(m, Params("bench_reconstruct"));
+        (void)r->reconstruct(in);  // one-time set-up (plans, libtorch's kernels) out of the timing
+        const Timing t = measure(reps, [&] { (void)r->reconstruct(in); });
+        std::string params = r->describe();
+        for (char& c : params) c = c == '\n' ? ' ' : c;
+        std::printf("  %-18s %8.1f ms  (%8.1f ms CPU)  %s\n", m.c_str(), t.wall * 1e3, t.cpu * 1e3,
+                    m == "neural" ? params.c_str() : "");
+        if (m == "neural")
+            std::printf("\nratios\n  neural / %.2f s budget (2 s per 1280x720)  %8.2f   (target <= 1)\n", budget,
+                        t.wall / budget);
+    }
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
     int reps = 5;
     bool with_reference = false, with_neural = true;
+    std::string frame_file;
     for (int i = 1; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--reps") && i + 1 < argc) {
             try {
@@ -127,12 +181,21 @@ int main(int argc, char** argv) {
         }
         else if (!std::strcmp(argv[i], "--with-reference")) with_reference = true;
         else if (!std::strcmp(argv[i], "--no-neural")) with_neural = false;
+        else if (!std::strcmp(argv[i], "--frame") && i + 1 < argc) frame_file = argv[++i];
         else {
-            std::fprintf(stderr, "usage: %s [--reps N] [--with-reference] [--no-neural]\n", argv[0]);
+            std::fprintf(stderr, "usage: %s [--reps N] [--with-reference] [--no-neural] [--frame FILE.exr]\n", argv[0]);
             return 2;
         }
     }
     std::printf("machine: %s\n", gdr::bench::machine_description().c_str());
+    if (!frame_file.empty()) {
+        try {
+            return run_frame(frame_file, reps, with_neural);
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "bench_reconstruct: error: %s\n", e.what());
+            return 1;
+        }
+    }
     const int W = 1280, H = 720;
     const std::string ref_dir = std::string(GDR_SHARED_DIR) + "/reference-outputs/mitsuba-gpt-cbox-16spp";
     const bool have_ref = std::filesystem::exists(ref_dir + "/cbox-final.exr");
@@ -193,11 +256,8 @@ int main(int argc, char** argv) {
     std::string neural_note = "not measured (--no-neural)";
     Timing t_neural;
     if (with_neural) {
-        // The build tree's plugin, unless GDR_PLUGIN_PATH says otherwise; libtorch's
-        // OpenMP threads wait passively, as the gdr tool sets them.
-        setenv("OMP_WAIT_POLICY", "PASSIVE", 0);
-        const PluginLoad plugin = load_plugins_from(plugin_path_dirs({GDR_PLUGIN_BUILD_DIR}));
-        if (reconstructor_registry().has("neural")) {
+        const std::string why_not = load_neural_plugin();
+        if (why_not.empty()) {
             const auto net = reconstructor_registry().create("neural", Params("bench_reconstruct"));
             FrameBuffer fb(W, H);
             fb.set("primal", frame.primal), fb.set("dx", frame.dx), fb.set("dy", frame.dy);
@@ -205,6 +265,12 @@ int main(int argc, char** argv) {
             Image& normal = fb.add("normal", 3);
             for (size_t i = 2; i < normal.values().size(); i += 3) normal.values()[i] = 1.f;
             fb.add("depth", 1).values().assign(size_t(W) * H, 1.f);
+            // The shipped model reads poisson-weighted's solve: stand-in
+            // variances of 16-sample means (they change its iterations, not
+            // its operations per iteration).
+            for (const char* v : {"primal_variance", "dx_variance", "dy_variance"})
+                fb.add(v, 3).values().assign(size_t(W) * H * 3, 0.05f);
+            fb.add("spp", 1).values().assign(size_t(W) * H, 16.f);
             const GradientBuffers nb = gradient_buffers(fb);
             (void)net->reconstruct(nb);  // the first run includes torch's one-time set-up
             t_neural = measure(reps, [&] { (void)net->reconstruct(nb); });
@@ -212,8 +278,7 @@ int main(int argc, char** argv) {
             for (char& c : params) c = c == '\n' ? ' ' : c;
             neural_note = "measured: " + params;
         } else {
-            neural_note = "not measured: its plugin is not built (it needs libtorch)";
-            for (const auto& [file, reason] : plugin.skipped) neural_note = "not measured: " + file + ": " + reason;
+            neural_note = "not measured: " + why_not;
         }
     }
 
