@@ -6,14 +6,23 @@
 
 namespace gdr {
 
-/// Pure random replay (never reconnects).
+/// Random replay, which reconnects only onto the environment: where x_k and
+/// y_k are connectable, the environment's light sample at x_k is shifted by
+/// its direction, so a base that leaves the scene from there is shifted by
+/// its direction too (shift::reconnect; the gradients' MIS weights need both
+/// strategies of a path to shift it alike), and a replayed ray that leaves
+/// the scene from there is refused (the inverse would have copied it).
 struct ReplayShift {
     static constexpr std::string_view kName = "replay";
     /// Shifts vertex in.k.
     template <class H>
     ShiftStep step(const BasicShiftStepInput<H>& in) const {
         if (!shift::base_has_next(in)) return ShiftStep{};
-        return shift::replay(in);
+        const bool both = shift::base_connectable(in, in.k) && shift::offset_connectable(in);
+        if (both && shift::base_next_infinite(in)) return shift::reconnect(in);
+        ShiftStep s = shift::replay(in);
+        s.reject_if_escapes = both;
+        return s;
     }
 };
 static_assert(ShiftMapping<ReplayShift>);

@@ -107,6 +107,9 @@ struct ShiftStep {
     /// The step is only valid if the vertex it reaches is NOT connectable (otherwise
     /// the inverse shift would have reconnected there, and T would not be invertible).
     bool reject_if_connectable = false;
+    /// The step is only valid if its ray does not leave the scene (otherwise the
+    /// inverse shift would have copied the direction onto the environment there).
+    bool reject_if_escapes = false;
 };
 /// A shift step's input on gdr's own Scene.
 using ShiftStepInput = BasicShiftStepInput<Scene>;

@@ -13,7 +13,8 @@ namespace gdr::shift {
 template <class H>
 bool base_connectable(const BasicShiftStepInput<H>& in, size_t i) {
     const BasicVertex<H>& x = in.base.v[i];
-    // A vertex on the environment is a direction: nothing reconnects to it.
+    // A vertex on the environment is a direction, not a surface (reconnect()
+    // copies it; can_reconnect() says when).
     return !x.infinite && is_connectable(in.scene.surface(x.si).min_roughness, x.u_classify, in.config);
 }
 
@@ -28,10 +29,16 @@ bool offset_connectable(const BasicShiftStepInput<H>& in) {
 template <class H>
 bool base_has_next(const BasicShiftStepInput<H>& in) { return in.base.v[in.k].scattered() && in.k + 1 < in.base.size(); }
 
-/// True if reconnecting y_k -> x_{k+1} is allowed: x_k, y_k and x_{k+1} are all connectable.
+/// True if the base's next vertex x_{k+1} lies on the environment (a direction).
+template <class H>
+bool base_next_infinite(const BasicShiftStepInput<H>& in) { return base_has_next(in) && in.base.v[in.k + 1].infinite; }
+
+/// True if reconnecting y_k -> x_{k+1} is allowed: x_k and y_k are connectable,
+/// and x_{k+1} is too or lies on the environment.
 template <class H>
 bool can_reconnect(const BasicShiftStepInput<H>& in) {
-    return base_has_next(in) && base_connectable(in, in.k) && offset_connectable(in) && base_connectable(in, in.k + 1);
+    return base_has_next(in) && base_connectable(in, in.k) && offset_connectable(in) &&
+           (base_next_infinite(in) || base_connectable(in, in.k + 1));
 }
 
 /// Reconnection y_k -> x_{k+1} (Kettunen et al., "Gradient-Domain Path
@@ -39,6 +46,15 @@ bool can_reconnect(const BasicShiftStepInput<H>& in) {
 /// x_{k+1}'s surface or carries no throughput; whether it is blocked is the
 /// caller's test (ShiftStep::Kind::Reconnect).
 /// |J| = |cos_y| ||x_k - x_{k+1}||^2 / (|cos_x| ||y_k - x_{k+1}||^2), cosines at x_{k+1}.
+/// A vertex x_{k+1} on the environment is infinitely far: the offset leaves
+/// y_k along the base's own direction, |J| = 1 in solid angle, and the
+/// caller tests that it escapes. That is how the environment's light sample
+/// at x_k is shifted too (by direction), and the gradients' MIS weights
+/// combine the two strategies of a path ending on the environment only if
+/// both shift it alike: with a half-vector or replayed direction for the
+/// BSDF-sampled escape, E[dx] on an environment-lit box was off by up to
+/// 6.5 standard errors once the map's radiance varied between neighbouring
+/// directions (tests/test_environment.cpp).
 template <PathHost H>
 ShiftStep reconnect(const BasicShiftStepInput<H>& in);
 
@@ -56,9 +72,11 @@ template <PathHost H>
 ShiftStep replay(const BasicShiftStepInput<H>& in);
 
 /// The pattern of the survey's shifts: reconnect as soon as x_k, y_k and x_{k+1}
-/// are connectable, otherwise take `fallback`'s own direction. When only x_{k+1}
-/// prevented the reconnection, the step is marked reject_if_connectable: the
-/// inverse would reconnect at a connectable y_{k+1}, so T must not go there.
+/// are connectable (x_{k+1} on the environment counts as connectable),
+/// otherwise take `fallback`'s own direction. When only x_{k+1} prevented the
+/// reconnection, the step is marked reject_if_connectable: the inverse would
+/// reconnect at a connectable y_{k+1} or at one on the environment, so T must
+/// not go there.
 template <PathHost H>
 ShiftStep reconnect_or(const BasicShiftStepInput<H>& in,
                        std::type_identity_t<ShiftStep (*)(const BasicShiftStepInput<H>&)> fallback);
@@ -74,6 +92,15 @@ ShiftStep reconnect(const BasicShiftStepInput<H>& in) {
     const BasicVertex<H>& x = in.base.v[in.k];
     const BasicVertex<H>& next = in.base.v[in.k + 1];
     const typename H::Interaction& y = in.y.si;
+    if (next.infinite) {
+        // x_{k+1}.ng is the direction light travels: towards x_k.
+        const Vec3 wi = y.frame.to_local(-next.si.ng);
+        const BsdfEval fe = in.scene.eval_bsdf(y, in.y.wo, wi);
+        if (is_black(fe.f)) return s;
+        s.kind = ShiftStep::Kind::Reconnect;
+        s.wi = wi, s.f = fe.f, s.pdf = fe.pdf, s.jacobian = 1.0, s.delta = false;
+        return s;
+    }
     // Distances and cosines in double: the Jacobian is a ratio of nearly equal quantities.
     const Vec3d pn(next.si.p), ng(next.si.ng);
     const Vec3d dx = Vec3d(x.si.p) - pn, dy = Vec3d(y.p) - pn;
@@ -186,7 +213,7 @@ ShiftStep reconnect_or(const BasicShiftStepInput<H>& in,
                        std::type_identity_t<ShiftStep (*)(const BasicShiftStepInput<H>&)> fallback) {
     if (!base_has_next(in)) return ShiftStep{};
     const bool both = base_connectable(in, in.k) && offset_connectable(in);
-    if (both && base_connectable(in, in.k + 1)) return reconnect(in);
+    if (both && (base_next_infinite(in) || base_connectable(in, in.k + 1))) return reconnect(in);
     ShiftStep s = fallback(in);
     s.reject_if_connectable = both;
     return s;

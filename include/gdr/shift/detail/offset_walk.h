@@ -322,6 +322,23 @@ void walk_offset(const H& scene, const BasicShift<H>& shift, const ShiftConfig& 
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
+            if constexpr (EnvironmentHost<H>) {
+                if (next.infinite) {
+                    // Onto the environment: along the base's direction, out past the scene.
+                    const Vec3 d = -next.si.ng;
+                    if (!DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng,
+                                                               scene.beyond_scene(y.si.p, d), next.si.ng,
+                                                               {&out, k, true})) {
+                        s = ShiftStep{};  // Fail
+                        return;
+                    }
+                    const Ray ray = spawn_ray(y.si, d);
+                    BasicOffsetVertex<H>& v = out.v.emplace_back().y;  // out.v may move: `y` and `s` are dead here
+                    set_on_environment(scene, ray, v);
+                    v.on_base = true;
+                    continue;
+                }
+            }
             if (!DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng, next.si.p, next.si.ng,
                                                        {&out, k, true})) {
                 s = ShiftStep{};  // Fail
@@ -332,14 +349,20 @@ void walk_offset(const H& scene, const BasicShift<H>& shift, const ShiftConfig& 
             continue;
         }
         const Ray ray = spawn_ray(y.si, y.si.frame.to_world(s.wi));
-        const bool reject_if_connectable = s.reject_if_connectable;
+        const bool reject_if_connectable = s.reject_if_connectable, reject_if_escapes = s.reject_if_escapes;
         ++out.rays;
         BasicOffsetRecord<H>& nr = out.v.emplace_back();  // invalidates `rec`, `y` and `s`
         const bool hit = scene.intersect(ray, nr.y.si);
         if constexpr (EnvironmentHost<H>)
             if (!hit && scene.environment()) {
                 // Left the scene: the offset ends on the environment (its emitter
-                // term at k + 1 is all it has from here; its step there stays Fail).
+                // term at k + 1 is all it has from here; its step there stays Fail)
+                // unless the inverse would have reconnected there (steps.h).
+                if (reject_if_connectable || reject_if_escapes) {
+                    out.v.pop_back();
+                    out.v[k].step.kind = ShiftStep::Kind::Fail;
+                    return;
+                }
                 set_on_environment(scene, ray, nr.y);
                 return;
             }
