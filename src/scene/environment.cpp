@@ -55,9 +55,23 @@ std::shared_ptr<Environment> Environment::from_map(const Image& map, const glm::
     e->map_ = Image(w, h, 3);
     e->to_world_ = to_world;
     e->to_local_ = glm::transpose(to_world);
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            const Color c = map.rgb(x, y) * scale;
+            if (!is_finite(c) || c.r < 0.f || c.g < 0.f || c.b < 0.f)
+                throw InputError(origin + ": environment map texel (" + std::to_string(x) + ", " + std::to_string(y) +
+                                 ") is negative or not finite");
+            e->map_.set_rgb(x, y, c);
+        }
     e->weight_.resize(size_t(w) * h);
     e->row_cdf_.assign(size_t(h) + 1, 0.0);
     e->col_cdf_.assign(size_t(h) * (w + 1), 0.0);
+    // The integral of the bilinear interpolant over one cell, per axis: a
+    // texel's value weighs 3/4, each neighbour's 1/8 (u wraps, v clamps,
+    // as lookup() does). A cell where the radiance is anywhere non-zero
+    // thus has a non-zero weight, so sampling covers every direction that
+    // carries light.
+    constexpr double k[3] = {0.125, 0.75, 0.125};
     double lum_int = 0.0;
     for (int y = 0; y < h; ++y) {
         const double th0 = kPiD * y / h, th1 = kPiD * (y + 1) / h;
@@ -68,12 +82,12 @@ std::shared_ptr<Environment> Environment::from_map(const Image& map, const glm::
         double* cdf = &e->col_cdf_[size_t(y) * (w + 1)];
         double row = 0.0;
         for (int x = 0; x < w; ++x) {
-            Color c = map.rgb(x, y) * scale;
-            if (!is_finite(c) || c.r < 0.f || c.g < 0.f || c.b < 0.f)
-                throw InputError(origin + ": environment map texel (" + std::to_string(x) + ", " + std::to_string(y) +
-                                 ") is negative or not finite");
-            e->map_.set_rgb(x, y, c);
-            const double lum = std::max(0.0, double(luminance(c)));
+            double lum = 0.0;
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    const int sx = (x + dx + w) % w, sy = std::clamp(y + dy, 0, h - 1);
+                    lum += k[dx + 1] * k[dy + 1] * std::max(0.0, double(luminance(e->map_.rgb(sx, sy))));
+                }
             lum_int += lum * cell_sr;
             const double wt = lum * sin_c;
             e->weight_[size_t(y) * w + x] = float(wt);
@@ -112,11 +126,23 @@ int Environment::texel(const Vec2& uv, int& x, int& y) const {
     return y * map_.width() + x;
 }
 
+Color Environment::lookup(const Vec2& uv) const {
+    const int w = map_.width(), h = map_.height();
+    // Texel (x, y) is the value at its centre ((x + 0.5) / W, (y + 0.5) / H).
+    const float fx = uv.x * float(w) - 0.5f, fy = uv.y * float(h) - 0.5f;
+    const float x0f = std::floor(fx), y0f = std::floor(fy);
+    const float tx = fx - x0f, ty = fy - y0f;
+    const int x0 = ((int(x0f) % w) + w) % w, x1 = (x0 + 1) % w;
+    const int y0 = std::clamp(int(y0f), 0, h - 1), y1 = std::clamp(int(y0f) + 1, 0, h - 1);
+    // As a + (b - a) t: where neighbouring texels are equal the value is theirs exactly.
+    const Color top = map_.rgb(x0, y0) + (map_.rgb(x1, y0) - map_.rgb(x0, y0)) * tx;
+    const Color bottom = map_.rgb(x0, y1) + (map_.rgb(x1, y1) - map_.rgb(x0, y1)) * tx;
+    return glm::max(top + (bottom - top) * ty, Color(0.f));
+}
+
 Color Environment::eval(const Vec3& w) const {
     if (map_.empty()) return constant_;
-    int x, y;
-    texel(direction_to_uv(w), x, y);
-    return map_.rgb(x, y);
+    return lookup(direction_to_uv(w));
 }
 
 float Environment::pdf(const Vec3& w) const {
@@ -152,7 +178,7 @@ EnvironmentSample Environment::sample(const Vec2& u) const {
     const float uu = std::clamp(float((x + std::clamp(fx, 0.0, 1.0)) / w), (x + 1e-4f) / w, (x + 1.f - 1e-4f) / w);
     const float vv = std::clamp(float((y + std::clamp(fy, 0.0, 1.0)) / h), (y + 1e-4f) / h, (y + 1.f - 1e-4f) / h);
     s.wi = uv_to_direction(Vec2(uu, vv));
-    s.radiance = map_.rgb(x, y);
+    s.radiance = eval(s.wi);  // exactly what eval() gives the direction (not the rounded (uu, vv))
     const double p_uv = double(weight_[size_t(y) * w + x]) * double(w) * double(h) / weight_sum_;
     const float sin_theta = std::sin(kPi * vv);
     s.pdf_w = sin_theta > 0.f ? float(p_uv / (2.0 * kPiD * kPiD * double(sin_theta))) : 0.f;

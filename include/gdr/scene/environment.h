@@ -13,9 +13,12 @@
 // and inversely d = (sin(theta) sin(phi), cos(theta), -sin(theta) cos(phi))
 // with phi = 2 pi u, theta = pi v. So the map's left edge looks along local
 // -z, u = 1/4 along +x, its centre column along +z and u = 3/4 along -x.
-// Each texel is a constant-radiance cell of the (u, v) square (nearest texel,
-// cells of equal size): Mitsuba interpolates bilinearly between texels, which
-// blurs by at most one texel.
+// The radiance between texels is interpolated bilinearly, as Mitsuba's
+// envmap does: texel (x, y) is the value at its centre ((x + 0.5) / W,
+// (y + 0.5) / H), u wraps around and v is clamped at the poles. Sampling is
+// piecewise constant over the texels' cells, each weighted by the integral
+// of that interpolant over it (3/4 of its own texel and 1/8 of each
+// neighbour's per axis) times sin(theta).
 #pragma once
 
 #include <memory>
@@ -56,11 +59,13 @@ public:
     /// Solid-angle density (1/sr) with which sample() produces unit direction w.
     float pdf(const Vec3& w) const;
     /// Samples a direction from two uniform numbers: the constant kind uniformly
-    /// over the sphere, the map by texel luminance times sin(theta), then
-    /// uniformly in (u, v) within the texel.
+    /// over the sphere, the map by cell (the luminance of the interpolated
+    /// radiance integrated over the texel's cell, times sin(theta)), then
+    /// uniformly in (u, v) within the cell.
     EnvironmentSample sample(const Vec2& u) const;
     /// Integral over the sphere of the luminance of eval(), in W/(m^2) (radiance
-    /// times solid angle): the environment's power per unit area of a plane it lights.
+    /// times solid angle): the environment's power per unit area of a plane it
+    /// lights (for a map: each cell's mean times its solid angle).
     double luminance_integral() const { return luminance_integral_; }
     /// True for the constant kind.
     bool is_constant() const { return map_.empty(); }
@@ -74,16 +79,18 @@ private:
     Color constant_{0.f};        // constant kind: the radiance
     Image map_;                  // envmap kind: scaled RGB radiance
     glm::mat3 to_world_{1.f}, to_local_{1.f};
-    // Sampling of texels: row_cdf_ over rows (H + 1 entries, 0 .. 1), and per
+    // Sampling of cells: row_cdf_ over rows (H + 1 entries, 0 .. 1), and per
     // row a cdf over its columns (W + 1 entries each) in col_cdf_; weight_ is
-    // each texel's luminance times the sin(theta) of its row centre, and
-    // weight_sum_ their total.
+    // each cell's mean interpolated luminance times the sin(theta) of its row
+    // centre, and weight_sum_ their total.
     std::vector<double> row_cdf_, col_cdf_;
     std::vector<float> weight_;
     double weight_sum_ = 0.0;
     double luminance_integral_ = 0.0;
-    // Texel of (u, v), clamped into the map.
+    // Cell (texel) of (u, v), clamped into the map.
     int texel(const Vec2& uv, int& x, int& y) const;
+    // The bilinearly interpolated radiance at (u, v) (see the file comment).
+    Color lookup(const Vec2& uv) const;
 };
 
 }  // namespace gdr
