@@ -116,6 +116,16 @@ PoissonProblem problem_of(const GradientFrame& f, double alpha) {
     return PoissonProblem{v(f.primal), v(f.dx), v(f.dy), alpha};
 }
 
+/// Prints the 1-minute load average where /proc has it: other processes on
+/// the machine change wall times a lot, so each run says how busy it was.
+void print_load_average() {
+    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
+        double l1 = 0;
+        if (std::fscanf(f, "%lf", &l1) == 1) std::printf("load average (1 min) at start: %.2f\n", l1);
+        std::fclose(f);
+    }
+}
+
 /// Loads the plugins of the build tree (or GDR_PLUGIN_PATH); "" if the neural
 /// reconstructor is there, else why not.
 std::string load_neural_plugin() {
@@ -137,11 +147,7 @@ int run_frame(const std::string& path, int reps, bool with_neural) {
     std::printf("reconstruction of a render's own layers: %s (%dx%d)\n", path.c_str(), W, H);
     std::printf("threads: %d (TBB default concurrency); times: median of %d runs after one untimed, wall (process CPU)\n",
                 tbb::info::default_concurrency(), reps);
-    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
-        double l1 = 0;
-        if (std::fscanf(f, "%lf", &l1) == 1) std::printf("load average (1 min) at start: %.2f\n", l1);
-        std::fclose(f);
-    }
+    print_load_average();
     std::vector<std::string> methods = {"poisson-l1", "poisson-weighted"};
     if (with_neural) {
         const std::string why = load_neural_plugin();
@@ -209,12 +215,7 @@ int main(int argc, char** argv) {
                 have_ref ? "reference cbox buffers tiled" : "synthetic (reference outputs not found)");
     std::printf("threads: %d (TBB default concurrency); times: median of %d runs, wall (process CPU)\n",
                 tbb::info::default_concurrency(), reps);
-    // Other processes on the machine change wall times a lot; say how busy it was.
-    if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
-        double l1 = 0;
-        if (std::fscanf(f, "%lf", &l1) == 1) std::printf("load average (1 min) at start: %.2f\n", l1);
-        std::fclose(f);
-    }
+    print_load_average();
 
     // The bound: one DCT solve of 3 planar channels (plans already cached).
     DctSolver dct(W, H);
