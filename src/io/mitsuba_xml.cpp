@@ -1026,8 +1026,24 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         } else {
             b->normal_map = map;
         }
-    } else if (type == "blendbsdf" || type == "coating" ||
-               type == "roughcoating") {
+    } else if (type == "coating") {
+        const auto inner = nested(true);
+        const float eta = ior(p, "int_ior", 1.5046f) / ior(p, "ext_ior", 1.00028f);
+        const float thickness = scalar_param(p, "thickness", 1.f);
+        if (!(thickness >= 0.f) || !std::isfinite(thickness)) fail(n, "thickness must be finite and >= 0");
+        const auto sigma = get_texture(p, "sigma_a", Color(0.f));
+        if (!sigma->is_constant()) warn(n, "a textured sigma_a is taken at its mean");
+        auto spec = tint_texture(p, "specular_reflectance");
+        b->opacity = inner->opacity, b->bump = inner->bump, b->normal_map = inner->normal_map;
+        if (inner->bsdf->flags() & kTransmission) {
+            // Mitsuba refracts such a nested BSDF's transmitted light out through the
+            // coating's own interface again, which models no physical layer.
+            unsupported(n, "a coating over a transmitting BSDF", "renders its nested BSDF");
+            b->bsdf = inner->bsdf;
+        } else {
+            b->bsdf = make_coating(inner->bsdf, eta, sigma->mean() * thickness, std::move(spec));
+        }
+    } else if (type == "blendbsdf" || type == "roughcoating") {
         unsupported(n, "unsupported BSDF type '" + type + "'", "renders its nested BSDF");
         const auto inner = nested(false);
         if (inner) b->bsdf = inner->bsdf, b->opacity = inner->opacity;

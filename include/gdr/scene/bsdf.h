@@ -160,6 +160,18 @@ std::shared_ptr<Bsdf> make_plastic(std::shared_ptr<Texture> kd, const Color& ks,
 std::shared_ptr<Bsdf> make_coated_plastic(std::shared_ptr<Texture> kd, const Color& ks, float eta, float alpha,
                                           MicrofacetType type = MicrofacetType::GGX, bool nonlinear = false);
 
+/// A smooth dielectric coating over a reflective BSDF, as Mitsuba's `coating`
+/// (Weidlich and Wilkie, "Arbitrarily Layered Micro-Facet Surfaces", 2007):
+/// the interface reflects F(cos_o) times `specular_reflectance` (a unitless
+/// texture, null = 1) as a delta lobe; the rest is refracted in, scattered
+/// once by `nested` between the refracted directions, attenuated by
+/// exp(-sigma_a_thickness (1/cos_o' + 1/cos_i')) (sigma_a times the layer's
+/// thickness, unitless) and refracted out: f = (1 - F_o)(1 - F_i) A f_nested / eta^2.
+/// eta = n_int / n_ext. Light the underside reflects back is lost, as in
+/// Mitsuba. Two-sided. Throws ParameterError if `nested` transmits.
+std::shared_ptr<Bsdf> make_coating(std::shared_ptr<Bsdf> nested, float eta, const Color& sigma_a_thickness = Color(0.f),
+                                   std::shared_ptr<Texture> specular_reflectance = nullptr);
+
 /// Modified Phong reflection as Mitsuba's `phong` (Lafortune and Willems
 /// 1994): f = kd / pi + ks (n + 2) / (2 pi) max(0, wi . reflect(wo))^n, two-sided,
 /// with kd and ks (unitless textures) scaled together so that the larger channel

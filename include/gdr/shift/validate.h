@@ -269,9 +269,10 @@ ShiftReport validate_shift(const H& scene, const BasicShift<H>& shift, const Shi
                 }
             }
             if (r.y.on_base || x.v[k].bs.is_delta() || r.step.kind == ShiftStep::Kind::Fail) continue;
-            // A density-ratio Jacobian equals the geometric one only where each side has a single lobe.
+            // A density-ratio Jacobian equals the geometric one only where each side has a single lobe
+            // (a delta lobe beside a smooth one counts: its share of the samples depends on wo).
             const auto lobes = [&](const typename H::Interaction& at) {
-                return uint32_t(scene.bsdf_flags(at)) & (kDiffuse | kGlossy);
+                return uint32_t(scene.bsdf_flags(at)) & (kDiffuse | kGlossy | kSpecular);
             };
             if (r.step.sample_space &&
                 (std::popcount(lobes(x.v[k].si)) > 1 || std::popcount(lobes(r.y.si)) > 1)) {

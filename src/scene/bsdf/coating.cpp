@@ -1,0 +1,198 @@
+// A smooth dielectric coating over a nested reflective BSDF, the layered
+// model of Weidlich and Wilkie, "Arbitrarily Layered Micro-Facet Surfaces"
+// (2007), as Mitsuba's `coating` defines it: the interface reflects
+// F(cos_o) (times specular_reflectance) as a delta lobe; the rest enters,
+// is scattered once by the nested BSDF between the refracted directions
+// wo', wi', is attenuated by the layer's absorption along both refracted
+// segments, and leaves through the interface again:
+//   f(wo, wi) = (1 - F(cos_o)) (1 - F(cos_i)) A f_n(wo', wi') / eta^2,
+//   A = exp(-sigma_a d (1 / cos_o' + 1 / cos_i')),
+// eta = n_int / n_ext. The 1 / eta^2 is the radiance leaving the denser layer
+// (n^2 law) and its solid angle entering it (eta^2 cos' d omega' = cos d omega)
+// together: irradiance crosses the interface unchanged but for Fresnel. f is
+// reciprocal. Light reflected back down by the interface's underside is lost
+// (as in Mitsuba: the model is single-bounce within the layer). Two-sided like
+// gdr's other reflective BSDFs.
+#include <algorithm>
+#include <cmath>
+
+#include "gdr/core/error.h"
+#include "gdr/scene/bsdf.h"
+#include "gdr/scene/microfacet.h"
+
+namespace gdr {
+namespace {
+
+/// Tolerance (Euclidean distance of unit vectors) for a wi along the mirror direction.
+constexpr float kDeltaTolerance = 1e-3f;
+
+class Coating final : public Bsdf {
+public:
+    Coating(std::shared_ptr<Bsdf> nested, float eta, const Color& sigma_a_thickness, std::shared_ptr<Texture> specular)
+        : nested_(std::move(nested)), eta_(eta), sigma_(sigma_a_thickness), specular_(std::move(specular)) {
+        // Sampling weight of the interface's reflection against the layer
+        // (Mitsuba's): 1/2 for a clear layer, more the more it absorbs.
+        const Color a = glm::exp(-2.f * sigma_);
+        w_specular_ = 1.f / ((a.r + a.g + a.b) / 3.f + 1.f);
+        spec_mean_ = specular_ ? std::max(0.f, (specular_->mean().r + specular_->mean().g + specular_->mean().b) / 3.f) : 1.f;
+    }
+
+    std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float u_lobe, const Vec2& u) const override {
+        if (wo.z == 0.f) return std::nullopt;
+        const float side = wo.z > 0.f ? 1.f : -1.f;
+        const Vec3 wo_up(wo.x, wo.y, std::abs(wo.z));
+        const float p_spec = specular_probability(wo_up.z);
+        if (u_lobe < p_spec) return mirror_sample(wo_up, side, uv);
+        float f_o;
+        Vec3 wo_in;
+        if (!enter(wo_up, wo_in, f_o)) return std::nullopt;
+        const float u_nested = std::min((u_lobe - p_spec) / (1.f - p_spec), 0x1.fffffep-1f);
+        const auto ns = nested_->sample(wo_in, uv, u_nested, u);
+        if (!ns || !(ns->wi.z > 0.f)) return std::nullopt;
+        if (ns->is_delta()) return mirror_sample(wo_up, side, uv);  // a nested mirror leaves along the mirror direction
+        float f_i;
+        Vec3 wi_up;
+        if (!leave(ns->wi, wi_up, f_i)) return std::nullopt;  // trapped by total internal reflection: lost
+        BsdfSample s;
+        s.wi = Vec3(wi_up.x, wi_up.y, side * wi_up.z);
+        s.f = transmitted(f_o, f_i, wo_in.z, ns->wi.z) * ns->f;
+        s.pdf = (1.f - p_spec) * ns->pdf * solid_angle_ratio(wi_up.z, ns->wi.z);
+        if (!(s.pdf > 0.f)) return std::nullopt;
+        s.eta = 1.f;
+        s.lobe = ns->lobe;
+        s.roughness = ns->roughness;
+        return s;
+    }
+
+    Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return Color(0.f);
+        float f_o, f_i;
+        Vec3 wo_in, wi_in;
+        if (!enter(up(wo), wo_in, f_o) || !enter(up(wi), wi_in, f_i)) return Color(0.f);
+        return transmitted(f_o, f_i, wo_in.z, wi_in.z) * nested_->eval(wo_in, wi_in, uv);
+    }
+
+    float pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return 0.f;
+        float f_o, f_i;
+        Vec3 wo_in, wi_in;
+        if (!enter(up(wo), wo_in, f_o) || !enter(up(wi), wi_in, f_i)) return 0.f;
+        return (1.f - specular_probability(std::abs(wo.z))) * nested_->pdf(wo_in, wi_in, uv) *
+               solid_angle_ratio(std::abs(wi.z), wi_in.z);
+    }
+
+    BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return {};
+        float f_o, f_i;
+        Vec3 wo_in, wi_in;
+        if (!enter(up(wo), wo_in, f_o) || !enter(up(wi), wi_in, f_i)) return {};
+        const BsdfEval n = nested_->eval_pdf(wo_in, wi_in, uv);
+        return {transmitted(f_o, f_i, wo_in.z, wi_in.z) * n.f,
+                (1.f - specular_probability(std::abs(wo.z))) * n.pdf * solid_angle_ratio(std::abs(wi.z), wi_in.z)};
+    }
+
+    std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
+        if (wo.z == 0.f || !same_hemisphere(wo, wi)) return std::nullopt;
+        const Vec3 wr(-wo.x, -wo.y, wo.z);
+        if (glm::length(wi - wr) > kDeltaTolerance) return std::nullopt;
+        return mirror_sample(up(wo), wo.z > 0.f ? 1.f : -1.f, uv);
+    }
+
+    uint32_t flags() const override { return nested_->flags() | kReflection | kSpecular; }
+    Color albedo(const Vec2& uv) const override { return nested_->albedo(uv); }
+    float min_roughness() const override { return 0.f; }
+
+private:
+    static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
+
+    /// Probability of sampling the interface's reflection for a wo at cos_o.
+    float specular_probability(float cos_o) const {
+        const float r = fresnel_dielectric(cos_o, eta_) * spec_mean_;
+        const float a = r * w_specular_, b = (1.f - r) * (1.f - w_specular_);
+        return a + b > 0.f ? a / (a + b) : 0.f;
+    }
+
+    /// w (outside, z > 0) refracted into the layer (z > 0, pointing back up);
+    /// false on total internal reflection (an index below the outside's).
+    bool enter(const Vec3& w, Vec3& w_in, float& fresnel) const {
+        float cos_t;
+        fresnel = fresnel_dielectric(w.z, eta_, cos_t);
+        if (fresnel >= 1.f || !(cos_t > 0.f)) return false;
+        w_in = Vec3(w.x / eta_, w.y / eta_, cos_t);
+        return true;
+    }
+
+    /// w_in (inside, z > 0) refracted out; the Fresnel term is the same
+    /// from either side of the interface for one pair of angles.
+    bool leave(const Vec3& w_in, Vec3& w, float& fresnel) const {
+        const float sin2 = eta_ * eta_ * std::max(0.f, 1.f - w_in.z * w_in.z);
+        if (sin2 >= 1.f) return false;
+        w = Vec3(w_in.x * eta_, w_in.y * eta_, std::sqrt(1.f - sin2));
+        float cos_t;
+        fresnel = fresnel_dielectric(w.z, eta_, cos_t);
+        return fresnel < 1.f;
+    }
+
+    /// Both Fresnel transmittances, the absorption along both refracted
+    /// segments and the 1 / eta^2 of the file comment.
+    Color transmitted(float f_o, float f_i, float cos_o_in, float cos_i_in) const {
+        const Color a = glm::exp(-sigma_ * (1.f / cos_o_in + 1.f / cos_i_in));
+        return a * ((1.f - f_o) * (1.f - f_i) / (eta_ * eta_));
+    }
+
+    /// d omega_in / d omega outside, for the density of wi: cos / (eta^2 cos').
+    float solid_angle_ratio(float cos_out, float cos_in) const { return cos_out / (eta_ * eta_ * cos_in); }
+
+    /// The delta lobe along the mirror direction: the interface's reflection,
+    /// plus the nested BSDF's own mirror lobe where it has one (refracted in
+    /// and out, it leaves along the same direction; the same Fresnel
+    /// transmittance both ways), with the probability that sample() produces
+    /// that direction by either choice.
+    std::optional<BsdfSample> mirror_sample(const Vec3& wo_up, float side, const Vec2& uv) const {
+        const Vec3 wr(-wo_up.x, -wo_up.y, wo_up.z);
+        const float fresnel = fresnel_dielectric(wo_up.z, eta_);
+        const float p_spec = specular_probability(wo_up.z);
+        Color throughput = fresnel * (specular_ ? specular_->eval(uv) : Color(1.f));
+        float pdf = p_spec;
+        float f_o;
+        Vec3 wo_in;
+        if (p_spec < 1.f && enter(wo_up, wo_in, f_o)) {
+            if (const auto nd = nested_->eval_delta(wo_in, Vec3(-wo_in.x, -wo_in.y, wo_in.z), uv); nd && nd->pdf > 0.f) {
+                const Color a = glm::exp(-sigma_ * (2.f / wo_in.z));
+                throughput += a * ((1.f - f_o) * (1.f - f_o)) * nd->f * wo_in.z;  // nd->f |cos| is its reflectance
+                pdf += (1.f - p_spec) * nd->pdf;
+            }
+        }
+        if (!(pdf > 0.f)) return std::nullopt;
+        BsdfSample s;
+        s.wi = Vec3(wr.x, wr.y, side * wr.z);
+        s.f = throughput / wr.z;  // the lobe's value: f |cos| is its reflectance, f |cos| / pdf the sample's weight
+        s.pdf = pdf;
+        s.eta = 1.f;
+        s.lobe = kReflection | kSpecular;
+        s.roughness = 0.f;
+        return s;
+    }
+
+    std::shared_ptr<Bsdf> nested_;
+    float eta_;
+    Color sigma_;
+    std::shared_ptr<Texture> specular_;
+    float w_specular_ = 0.5f, spec_mean_ = 1.f;
+};
+
+}  // namespace
+
+std::shared_ptr<Bsdf> make_coating(std::shared_ptr<Bsdf> nested, float eta, const Color& sigma_a_thickness,
+                                   std::shared_ptr<Texture> specular_reflectance) {
+    if (!nested) throw ParameterError("coating: a nested BSDF is required");
+    if (nested->flags() & kTransmission)
+        throw ParameterError("coating: the nested BSDF transmits; only reflective BSDFs can be coated");
+    if (!(eta > 0.f) || !std::isfinite(eta)) throw ParameterError("coating: the relative index must be finite and > 0");
+    if (!is_finite(sigma_a_thickness) || sigma_a_thickness.r < 0.f || sigma_a_thickness.g < 0.f ||
+        sigma_a_thickness.b < 0.f)
+        throw ParameterError("coating: sigma_a times thickness must be finite and >= 0");
+    return std::make_shared<Coating>(std::move(nested), eta, sigma_a_thickness, std::move(specular_reflectance));
+}
+
+}  // namespace gdr
