@@ -15,6 +15,7 @@
 
 #include "gdr/integrators/integrator.h"
 #include "gdr/io/scene_file.h"
+#include "gdr/shift/validate.h"
 
 namespace gdr::test {
 
@@ -147,6 +148,52 @@ inline std::vector<FrameBuffer> render_runs(const Scene& scene, const std::strin
     std::vector<FrameBuffer> fbs;
     for (int r = 0; r < runs; ++r) fbs.push_back(render(scene, integrator, p, spp, seed0 + uint64_t(r)));
     return fbs;
+}
+
+/// gpt renders `g` against pt renders `pt` of one scene: the largest block |z|
+/// of E[dx] and E[dy] against pt's pixel differences, of the negated dx (a
+/// power check: it must be rejected), of the primal against pt's image, and of
+/// the primal scaled by 0.95 (power again).
+struct GradientZ {
+    double zx = 0, zy = 0, z_neg = 0, zp = 0, zp_dark = 0;
+};
+inline GradientZ gradient_z(const std::vector<FrameBuffer>& pt, const std::vector<FrameBuffer>& g, int block) {
+    GradientZ z;
+    const BlockStats ref_dx = difference_stats(pt, "color", true, false, block);
+    const BlockStats dx = difference_stats(g, "dx", true, true, block);
+    z.zx = max_z(dx, ref_dx);
+    z.zy = max_z(difference_stats(g, "dy", false, true, block), difference_stats(pt, "color", false, false, block));
+    BlockStats neg = dx;
+    for (double& m : neg.mean) m = -m;
+    z.z_neg = max_z(neg, ref_dx);
+    const BlockStats ref = grey_stats(pt, "color", block), primal = grey_stats(g, "color", block);
+    z.zp = max_z(primal, ref);
+    z.zp_dark = max_z(scaled(primal, 0.95), ref);
+    return z;
+}
+/// The gradient tests' bounds on gradient_z: |z| < 5 for the gradients' tests, 4.5 for the primal's.
+inline void check_unbiased_gradients(const GradientZ& z) {
+    CAPTURE(z.zx, z.zy, z.z_neg, z.zp, z.zp_dark);
+    CHECK(z.zx < 5.0);
+    CHECK(z.zy < 5.0);
+    CHECK(z.z_neg > 5.0);
+    CHECK(z.zp < 4.5);
+    CHECK(z.zp_dark > 4.5);
+}
+
+/// Runs the shift validator for built-in shift `name` on `scene` over `paths`
+/// base paths and checks that it passes with more than `min_base_paths` of
+/// them scattering; returns the report for further checks.
+inline ShiftReport check_validated_shift(const Scene& scene, const char* name, long long min_base_paths = 1000,
+                                         int paths = 3000) {
+    ValidateOptions opt;
+    opt.paths = paths;
+    const auto shift = shift_registry().create(name, Params());
+    const ShiftReport rep = validate_shift(scene, *shift, ShiftConfig{}, opt);
+    INFO(name << "\n" << rep.summary());
+    CHECK(rep.passed);
+    CHECK(rep.base_paths > min_base_paths);
+    return rep;
 }
 
 }  // namespace gdr::test

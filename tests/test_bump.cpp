@@ -214,13 +214,7 @@ TEST_CASE("bump map: every built-in shift passes the validator on a bump- and no
     REQUIRE(bumps == 2);        // the walls' and the sphere's
     REQUIRE(normal_maps == 1);  // the floor panel's
     for (const char* name : {"half-vector", "reconnection", "replay", "replay-reconnect"}) {
-        ValidateOptions opt;
-        opt.paths = 3000;
-        const auto shift = shift_registry().create(name, Params());
-        const ShiftReport rep = validate_shift(*sf.scene, *shift, ShiftConfig{}, opt);
-        INFO(name << "\n" << rep.summary());
-        CHECK(rep.passed);
-        CHECK(rep.base_paths > 1000);
+        const ShiftReport rep = gdr::test::check_validated_shift(*sf.scene, name);
         // Not all: with these bumps 5 of 2823 replay offsets did not return
         // to their base path (none with the bump scales set to 0). Replay
         // follows a path whose every direction depends on the frames, and
