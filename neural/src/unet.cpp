@@ -123,6 +123,9 @@ torch::Tensor encode_signed(const torch::Tensor& g) { return torch::sign(g) * to
 
 torch::Tensor decode_signed(const torch::Tensor& y) { return torch::sign(y) * torch::expm1(torch::abs(y)); }
 
+/// CG iterations of the weighted solve that makes the network's input (see make_input).
+constexpr long long kInputSolveCgIterations = 40;
+
 int padded_size(int size, int levels) {
     const int multiple = 1 << std::max(0, levels - 1);
     return (size + 2 * kMargin + multiple - 1) / multiple * multiple;
@@ -147,13 +150,13 @@ torch::Tensor make_input(const GradientBuffers& in, const UNetConfig& config) {
         GradientBuffers solve_in = in;
         solve_in.direct = nullptr;
         const char* method = config.weighted ? "poisson-weighted" : "poisson-l1";
-        // The weighted solve with 40 CG iterations instead of its default
+        // The weighted solve with kInputSolveCgIterations (40) CG iterations instead of its default
         // 100 (a tenth of that per IRLS step): on a 1280x720 living-room
         // render at 2 spp its image differs from the default's by a relMSE
         // of 1.1e-5 (the network's own error there is above 1e-2) and it
         // takes about 0.9 s less.
         Params solve_params("neural input");
-        if (config.weighted) solve_params.set("cg_iterations", 40LL);
+        if (config.weighted) solve_params.set("cg_iterations", kInputSolveCgIterations);
         poisson = reconstruct(method, solve_params, solve_in);
         sources.push_back({&poisson, 3, Kind::colour, config.weighted ? "poisson-weighted reconstruction"
                                                                       : "poisson-l1 reconstruction"});

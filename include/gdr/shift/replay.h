@@ -18,7 +18,7 @@ struct ReplayShift {
     template <class H>
     ShiftStep step(const BasicShiftStepInput<H>& in) const {
         if (!shift::base_has_next(in)) return ShiftStep{};
-        const bool both = shift::base_connectable(in, in.k) && shift::offset_connectable(in);
+        const bool both = shift::both_connectable(in);
         if (both && shift::base_next_infinite(in)) return shift::reconnect(in);
         ShiftStep s = shift::replay(in);
         s.reject_if_escapes = both;

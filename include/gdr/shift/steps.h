@@ -25,6 +25,11 @@ bool offset_connectable(const BasicShiftStepInput<H>& in) {
            is_connectable(in.scene.surface(in.y.si).min_roughness, in.base.v[in.k].u_classify, in.config);
 }
 
+/// True if base vertex x_k and offset vertex y_k are both connectable: where
+/// light samples are shifted, and where a reconnection may start.
+template <class H>
+bool both_connectable(const BasicShiftStepInput<H>& in) { return base_connectable(in, in.k) && offset_connectable(in); }
+
 /// True if the base continues to a vertex x_{k+1}.
 template <class H>
 bool base_has_next(const BasicShiftStepInput<H>& in) { return in.base.v[in.k].scattered() && in.k + 1 < in.base.size(); }
@@ -37,8 +42,7 @@ bool base_next_infinite(const BasicShiftStepInput<H>& in) { return base_has_next
 /// and x_{k+1} is too or lies on the environment.
 template <class H>
 bool can_reconnect(const BasicShiftStepInput<H>& in) {
-    return base_has_next(in) && base_connectable(in, in.k) && offset_connectable(in) &&
-           (base_next_infinite(in) || base_connectable(in, in.k + 1));
+    return base_has_next(in) && both_connectable(in) && (base_next_infinite(in) || base_connectable(in, in.k + 1));
 }
 
 /// Reconnection y_k -> x_{k+1} (Kettunen et al., "Gradient-Domain Path
@@ -212,7 +216,7 @@ template <PathHost H>
 ShiftStep reconnect_or(const BasicShiftStepInput<H>& in,
                        std::type_identity_t<ShiftStep (*)(const BasicShiftStepInput<H>&)> fallback) {
     if (!base_has_next(in)) return ShiftStep{};
-    const bool both = base_connectable(in, in.k) && offset_connectable(in);
+    const bool both = both_connectable(in);
     if (both && (base_next_infinite(in) || base_connectable(in, in.k + 1))) return reconnect(in);
     ShiftStep s = fallback(in);
     s.reject_if_connectable = both;

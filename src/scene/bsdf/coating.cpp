@@ -65,30 +65,20 @@ public:
     }
 
     Color eval(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
-        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return Color(0.f);
-        float f_o, f_i;
-        Vec3 wo_in, wi_in;
-        if (!enter(up(wo), wo_in, f_o) || !enter(up(wi), wi_in, f_i)) return Color(0.f);
-        return transmitted(f_o, f_i, wo_in.z, wi_in.z) * nested_->eval(wo_in, wi_in, uv);
+        const auto r = refracted(wo, wi);
+        return r ? r->weight * nested_->eval(r->wo, r->wi, uv) : Color(0.f);
     }
 
     float pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
-        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return 0.f;
-        float f_o, f_i;
-        Vec3 wo_in, wi_in;
-        if (!enter(up(wo), wo_in, f_o) || !enter(up(wi), wi_in, f_i)) return 0.f;
-        return (1.f - specular_probability(std::abs(wo.z))) * nested_->pdf(wo_in, wi_in, uv) *
-               solid_angle_ratio(std::abs(wi.z), wi_in.z);
+        const auto r = refracted(wo, wi);
+        return r ? r->density * nested_->pdf(r->wo, r->wi, uv) : 0.f;
     }
 
     BsdfEval eval_pdf(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
-        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return {};
-        float f_o, f_i;
-        Vec3 wo_in, wi_in;
-        if (!enter(up(wo), wo_in, f_o) || !enter(up(wi), wi_in, f_i)) return {};
-        const BsdfEval n = nested_->eval_pdf(wo_in, wi_in, uv);
-        return {transmitted(f_o, f_i, wo_in.z, wi_in.z) * n.f,
-                (1.f - specular_probability(std::abs(wo.z))) * n.pdf * solid_angle_ratio(std::abs(wi.z), wi_in.z)};
+        const auto r = refracted(wo, wi);
+        if (!r) return {};
+        const BsdfEval n = nested_->eval_pdf(r->wo, r->wi, uv);
+        return {r->weight * n.f, r->density * n.pdf};
     }
 
     std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
@@ -104,6 +94,27 @@ public:
 
 private:
     static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
+
+    /// A pair of outside directions seen inside the layer: the refracted
+    /// directions (upper hemisphere), the factor on the nested value
+    /// (transmitted()) and the one on its density (the lobe's selection
+    /// probability times d omega' / d omega).
+    struct Refracted {
+        Vec3 wo, wi;
+        Color weight;
+        float density;
+    };
+    /// nullopt where the coating's smooth part is zero: different sides, a
+    /// grazing direction, or total internal reflection.
+    std::optional<Refracted> refracted(const Vec3& wo, const Vec3& wi) const {
+        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return std::nullopt;
+        Refracted r;
+        float f_o, f_i;
+        if (!enter(up(wo), r.wo, f_o) || !enter(up(wi), r.wi, f_i)) return std::nullopt;
+        r.weight = transmitted(f_o, f_i, r.wo.z, r.wi.z);
+        r.density = (1.f - specular_probability(std::abs(wo.z))) * solid_angle_ratio(std::abs(wi.z), r.wi.z);
+        return r;
+    }
 
     /// Probability of sampling the interface's reflection for a wo at cos_o.
     float specular_probability(float cos_o) const {

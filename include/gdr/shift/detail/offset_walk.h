@@ -140,7 +140,7 @@ void shift_light_connection(const H& scene, const ShiftConfig& config, const Bas
     // The light point is shared in area measure; both ends must be connectable
     // so that the inverse shift is defined too.
     const BasicShiftStepInput<H> in{scene, config, base, k, y};
-    if (!shift::base_connectable(in, k) || !shift::offset_connectable(in)) return;
+    if (!shift::both_connectable(in)) return;
     if (!(nee.pdf_w > 0.0)) return;  // the base cannot sample this light point (or sits on it)
     if (ls.infinite) {
         if constexpr (!EnvironmentHost<H>) {
@@ -322,27 +322,23 @@ void walk_offset(const H& scene, const BasicShift<H>& shift, const ShiftConfig& 
         if (s.kind == ShiftStep::Kind::Fail) return;
         if (s.kind == ShiftStep::Kind::Reconnect) {
             ++out.rays;  // the visibility test of the reconnection
+            // Onto the environment the segment leaves along the base's direction, out past the scene.
+            Vec3 target = next.si.p;
+            if constexpr (EnvironmentHost<H>)
+                if (next.infinite) target = scene.beyond_scene(y.si.p, -next.si.ng);
+            if (!DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng, target, next.si.ng,
+                                                       {&out, k, true})) {
+                s = ShiftStep{};  // Fail
+                return;
+            }
             if constexpr (EnvironmentHost<H>) {
                 if (next.infinite) {
-                    // Onto the environment: along the base's direction, out past the scene.
-                    const Vec3 d = -next.si.ng;
-                    if (!DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng,
-                                                               scene.beyond_scene(y.si.p, d), next.si.ng,
-                                                               {&out, k, true})) {
-                        s = ShiftStep{};  // Fail
-                        return;
-                    }
-                    const Ray ray = spawn_ray(y.si, d);
+                    const Ray ray = spawn_ray(y.si, -next.si.ng);
                     BasicOffsetVertex<H>& v = out.v.emplace_back().y;  // out.v may move: `y` and `s` are dead here
                     set_on_environment(scene, ray, v);
                     v.on_base = true;
                     continue;
                 }
-            }
-            if (!DeferredVisibility<H>::queued_or_visible(scene, defer, y.si.p, y.si.ng, next.si.p, next.si.ng,
-                                                       {&out, k, true})) {
-                s = ShiftStep{};  // Fail
-                return;
             }
             const Vec3 from = y.si.p;
             set_on_base(scene, out.v.emplace_back().y, next, from);  // out.v may move: `y` and `s` are dead here
