@@ -2,6 +2,7 @@
 // sample/eval/pdf agreement, reciprocity, energy bounds and known values.
 #include <catch2/catch.hpp>
 
+#include <complex>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -140,6 +141,11 @@ std::vector<Named> glossy_and_diffuse() {
          make_coated_plastic(make_constant_texture(Color(0.5f, 0.3f, 0.2f)), Color(0.8f), 1.33f, 0.3f,
                              MicrofacetType::Beckmann)},
         {"beckmann roughdielectric 1.5 a=0.4", make_rough_dielectric(1.5f, 0.4f, nullptr, nullptr, MicrofacetType::Beckmann)},
+        {"gold (eta, k) a=0.3", make_rough_conductor(ConductorIor{Color(0.143f, 0.375f, 1.442f), Color(3.983f, 2.386f, 1.603f)},
+                                                     0.3f)},
+        {"beckmann aluminium (eta, k) a=0.35",
+         make_rough_conductor(ConductorIor{Color(1.657f, 0.880f, 0.521f), Color(9.224f, 6.270f, 4.837f)}, 0.35f,
+                              MicrofacetType::Beckmann, make_constant_texture(Color(0.8f)))},
         {"textured conductor a=0.3", make_rough_conductor(Color(0.9f), 0.3f, MicrofacetType::GGX,
                                                           make_checkerboard_texture(make_constant_texture(Color(0.2f)),
                                                                                     make_constant_texture(Color(0.9f))))},
@@ -190,6 +196,98 @@ TEST_CASE("bsdf chi2: rough conductor - alpha 0.2 and 0.7 - wo below", "[bsdf][s
     check_chi2(*make_rough_conductor(Color(0.9f, 0.6f, 0.3f), 0.2f), "alpha 0.2", {10.f, 50.f, 80.f});
     check_chi2(*make_rough_conductor(Color(0.9f, 0.6f, 0.3f), 0.7f), "alpha 0.7", {10.f, 50.f, 80.f});
     check_chi2(*make_rough_conductor(Color(1.f), 0.3f), "alpha 0.3", {60.f}, true);
+}
+
+/// Fresnel reflectance of a conductor written independently of
+/// fresnel_conductor: the amplitude ratios r_s = (cos_i - n cos_t) /
+/// (cos_i + n cos_t) and r_p = (n cos_i - cos_t) / (n cos_i + cos_t) with
+/// the complex index n = eta + i k and the complex cos_t = sqrt(1 - sin_i^2 / n^2).
+static double fresnel_complex(double eta, double k, double cos_i) {
+    const std::complex<double> n(eta, k);
+    const double sin2 = 1.0 - cos_i * cos_i;
+    const std::complex<double> cos_t = std::sqrt(1.0 - sin2 / (n * n));
+    const std::complex<double> rs = (cos_i - n * cos_t) / (cos_i + n * cos_t);
+    const std::complex<double> rp = (n * cos_i - cos_t) / (n * cos_i + cos_t);
+    return 0.5 * (std::norm(rs) + std::norm(rp));
+}
+
+TEST_CASE("bsdf: exact conductor Fresnel", "[bsdf]") {
+    // Aluminium, gold, copper (Mitsuba's RGB indices), a dielectric-like
+    // index (k = 0) and a weakly absorbing one.
+    const ConductorIor iors[] = {{Color(1.657f, 0.880f, 0.521f), Color(9.224f, 6.270f, 4.837f)},
+                                 {Color(0.143f, 0.375f, 1.442f), Color(3.983f, 2.386f, 1.603f)},
+                                 {Color(0.200f, 0.924f, 1.102f), Color(3.913f, 2.453f, 2.142f)},
+                                 {Color(1.5f), Color(0.f)},
+                                 {Color(2.5f, 3.0f, 4.0f), Color(0.3f, 1.0f, 0.05f)}};
+    for (const ConductorIor& ior : iors) {
+        for (float theta : {0.f, 20.f, 45.f, 60.f, 75.f, 85.f, 89.5f}) {
+            const float c = std::cos(glm::radians(theta));
+            const Color f = fresnel_conductor(ior, c);
+            for (int i = 0; i < 3; ++i) {
+                INFO("eta " << ior.eta[i] << " k " << ior.k[i] << " theta " << theta);
+                CHECK(f[i] == Approx(fresnel_complex(ior.eta[i], ior.k[i], c)).margin(2e-6));
+                if (ior.k[i] == 0.f) CHECK(f[i] == Approx(fresnel_dielectric(c, ior.eta[i])).margin(1e-6));
+            }
+            // The same from below the surface (|cos| is used).
+            CHECK(fresnel_conductor(ior, -c) == f);
+        }
+        // Normal incidence: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2).
+        const Color f0 = fresnel_conductor(ior, 1.f);
+        for (int i = 0; i < 3; ++i) {
+            const float e = ior.eta[i], k = ior.k[i];
+            CHECK(f0[i] == Approx(((e - 1) * (e - 1) + k * k) / ((e + 1) * (e + 1) + k * k)).epsilon(1e-5));
+        }
+        CHECK(fresnel_conductor(ior, 0.f) == Color(1.f));  // grazing
+    }
+    // eta 0, k 1 (Mitsuba's "none") reflects everything at every angle.
+    for (float c : {1.f, 0.7f, 0.2f, 0.f}) CHECK(fresnel_conductor(ConductorIor{}, c) == Color(1.f));
+    // Metals dip below their normal reflectance before rising to 1 at
+    // grazing incidence, which Schlick's approximation does not: aluminium's
+    // blue at 80 degrees.
+    const ConductorIor al = iors[0];
+    const float c80 = std::cos(glm::radians(80.f));
+    CHECK(fresnel_conductor(al, c80).b < fresnel_conductor(al, 1.f).b);
+    CHECK(fresnel_schlick(fresnel_conductor(al, 1.f), c80).b > fresnel_conductor(al, 1.f).b);
+}
+
+TEST_CASE("bsdf: smooth conductor reflects the exact Fresnel reflectance times its tint", "[bsdf]") {
+    const ConductorIor gold{Color(0.143f, 0.375f, 1.442f), Color(3.983f, 2.386f, 1.603f)};
+    const Color tint(0.9f, 0.8f, 0.7f);
+    const auto b = make_conductor(gold, tint);
+    CHECK(b->is_pure_delta());
+    CHECK(close(b->albedo(kUv), tint * fresnel_conductor(gold, 1.f)));
+    for (float theta : {0.f, 40.f, 70.f, 85.f}) {
+        for (bool flip : {false, true}) {
+            const Vec3 wo = flip ? below(dir(theta)) : dir(theta);
+            const auto s = b->sample(wo, kUv, 0.5f, Vec2(0.5f));
+            REQUIRE(s);
+            CHECK(s->wi.z == Approx(wo.z));
+            // f |cos| / pdf: the reflected fraction.
+            const Color w = s->f * std::abs(s->wi.z) / s->pdf;
+            INFO("theta " << theta << (flip ? " below" : ""));
+            CHECK(close(w, tint * fresnel_conductor(gold, wo.z)));
+            const auto d = b->eval_delta(wo, s->wi, kUv);
+            REQUIRE(d);
+            CHECK(d->f == s->f);
+        }
+    }
+    // A near-smooth rough conductor of the same index converges to it.
+    const auto rough = make_rough_conductor(gold, 0.01f, MicrofacetType::GGX, make_constant_texture(tint));
+    for (float theta : {0.f, 30.f, 60.f}) {
+        const Albedo a = sampled_albedo(*rough, dir(theta), 20000, 53);
+        const Color expect = tint * fresnel_conductor(gold, std::cos(glm::radians(theta)));
+        INFO("rough gold theta " << theta);
+        for (int c = 0; c < 3; ++c) CHECK(a.mean[c] == Approx(expect[c]).epsilon(0.01));
+    }
+    CHECK_THROWS_AS(make_conductor(ConductorIor{Color(-1.f), Color(1.f)}), ParameterError);
+    CHECK_THROWS_AS(make_rough_conductor(ConductorIor{Color(1.f), Color(NAN)}, 0.2f), ParameterError);
+}
+
+TEST_CASE("bsdf chi2: rough conductor with exact Fresnel", "[bsdf][statistical]") {
+    const ConductorIor copper{Color(0.200f, 0.924f, 1.102f), Color(3.913f, 2.453f, 2.142f)};
+    check_chi2(*make_rough_conductor(copper, 0.1f), "copper GGX alpha 0.1", {10.f, 50.f, 80.f});
+    check_chi2(*make_rough_conductor(copper, 0.4f, MicrofacetType::Beckmann), "copper Beckmann alpha 0.4",
+               {10.f, 50.f, 80.f});
 }
 
 TEST_CASE("bsdf chi2: plastic", "[bsdf][statistical]") {

@@ -156,9 +156,10 @@ TEST_CASE("mitsuba: rectangle, cube, sphere and disk are triangulated with outwa
     CHECK(bounds(*d.scene).second.x == Approx(1.f));
 }
 
-TEST_CASE("mitsuba: ext_eta on the named conductor 'none' keeps its perfect mirror, and other names with ext_eta are errors",
+TEST_CASE("mitsuba: ext_eta divides a conductor's eta and k, named or given; 'none' stays a perfect mirror",
           "[mitsuba]") {
     Xml x;
+    const float cos_o = 1.f / std::sqrt(1.1f);  // delta_weight's wo
     // The closed box's mirrors: Mitsuba 0.6's 'none' (eta 0, k 1) in air still reflects everything.
     const std::string none = R"(<bsdf type="conductor" id="metal"><string name="material" value="none"/>
         <string name="extEta" value="air"/><spectrum name="specularReflectance" value="1.0"/></bsdf>)";
@@ -169,13 +170,19 @@ TEST_CASE("mitsuba: ext_eta on the named conductor 'none' keeps its perfect mirr
     const SceneFile ek = x.load(rect(R"(<bsdf type="conductor"><rgb name="eta" value="0.2, 0.9, 1.1"/>
         <rgb name="k" value="3.9, 2.4, 2.1"/><float name="ext_eta" value="1.5"/></bsdf>)"));
     const Color in_glass = delta_weight(bsdf_of(ek), 0.5f);
-    const float eta = 0.2f / 1.5f, k = 3.9f / 1.5f;
-    CHECK(in_glass.r == Approx(((eta - 1) * (eta - 1) + k * k) / ((eta + 1) * (eta + 1) + k * k)).epsilon(1e-4));
-    // A named metal other than 'none' is tabulated by its F0 in vacuum alone: an error naming line and element.
-    const std::string err = x.error(own_line(rect(R"(<bsdf type="conductor" id="gold"><string name="material" value="Au"/>
-        <float name="ext_eta" value="1.33"/></bsdf>)")));
-    CHECK_THAT(err, Catch::Contains("scene.xml:7") && Catch::Contains("id=\"gold\"") && Catch::Contains("ext_eta") &&
-                        Catch::Contains("--lenient"));
+    const ConductorIor divided{Color(0.2f, 0.9f, 1.1f) / 1.5f, Color(3.9f, 2.4f, 2.1f) / 1.5f};
+    CHECK(in_glass.r == Approx(fresnel_conductor(divided, cos_o).r).epsilon(1e-4));
+    CHECK(in_glass.r < fresnel_conductor(ConductorIor{Color(0.2f, 0.9f, 1.1f), Color(3.9f, 2.4f, 2.1f)}, cos_o).r);
+    // A named metal in water: its tabulated eta and k divided the same way.
+    const SceneFile au = x.load(rect(R"(<bsdf type="conductor" id="gold"><string name="material" value="Au"/>
+        <float name="ext_eta" value="1.33"/></bsdf>)"));
+    CHECK(au.warnings.empty());
+    ConductorIor gold;
+    REQUIRE(named_conductor_ior("Au", gold));
+    const Color w = delta_weight(bsdf_of(au), 0.5f);
+    const Color expect = fresnel_conductor(ConductorIor{gold.eta / 1.33f, gold.k / 1.33f}, cos_o);
+    for (int c = 0; c < 3; ++c) CHECK(w[c] == Approx(expect[c]).epsilon(1e-4));
+    CHECK(w.b < fresnel_conductor(gold, cos_o).b);
 }
 
 TEST_CASE("mitsuba: a lookat up within 1e-7 of the viewing axis still sets the roll, and an exactly parallel one is an error",
@@ -275,22 +282,31 @@ TEST_CASE("mitsuba: diffuse and twosided become Lambertian, roughdiffuse Oren-Na
     CHECK(f.b * kPi == Approx(0.5f));
 }
 
-TEST_CASE("mitsuba: conductors reflect their normal-incidence reflectance", "[mitsuba]") {
+TEST_CASE("mitsuba: conductors reflect the exact Fresnel reflectance of their eta and k", "[mitsuba]") {
     Xml x;
+    const float cos_o = 1.f / std::sqrt(1.1f);  // delta_weight's wo
     // Explicit eta and k, scaled by specular_reflectance.
+    const ConductorIor copper{Color(0.200438f, 0.924033f, 1.10221f), Color(3.91295f, 2.45285f, 2.14219f)};
     const SceneFile e = x.load(rect(R"(<bsdf type="conductor"><rgb name="eta" value="0.200438, 0.924033, 1.10221"/>
         <rgb name="k" value="3.91295, 2.45285, 2.14219"/><rgb name="specular_reflectance" value="0.3"/></bsdf>)"));
     const Color w = delta_weight(bsdf_of(e), 0.5f);
-    CHECK(w.r == Approx(0.2856f).epsilon(1e-3));  // veach-mis's converted Ks
-    CHECK(w.g == Approx(0.1859f).epsilon(1e-3));
-    // Named metals; the default is Mitsuba 3's perfect mirror, and 0.6's copper.
+    for (int c = 0; c < 3; ++c) CHECK(w[c] == Approx(0.3f * fresnel_conductor(copper, cos_o)[c]).epsilon(1e-4));
+    // At normal incidence: veach-mis's converted Ks.
+    CHECK(0.3f * fresnel_conductor(copper, 1.f).r == Approx(0.2856f).epsilon(1e-3));
+    CHECK(0.3f * fresnel_conductor(copper, 1.f).g == Approx(0.1859f).epsilon(1e-3));
+    // Named metals (gold's normal-incidence blue 0.3240); the default is
+    // Mitsuba 3's perfect mirror, and 0.6's copper.
+    Color au0;
+    REQUIRE(named_conductor_reflectance("Au", au0));
+    CHECK(au0.b == Approx(0.3240f).epsilon(1e-3));
+    ConductorIor gold, cu;
+    REQUIRE(named_conductor_ior("Au", gold));
     CHECK(delta_weight(bsdf_of(x.load(rect(R"(<bsdf type="conductor"><string name="material" value="Au"/></bsdf>)"))), 0.5f).b ==
-          Approx(0.3240f).epsilon(1e-3));
+          Approx(fresnel_conductor(gold, cos_o).b).epsilon(1e-4));
     CHECK(delta_weight(bsdf_of(x.load(rect(R"(<bsdf type="conductor"/>)"))), 0.5f) == Color(1.f));
-    Color cu;
-    REQUIRE(named_conductor_reflectance("Cu", cu));
+    REQUIRE(named_conductor_ior("Cu", cu));
     const SceneFile old = load_scene_file(x.write("old.xml", "<scene version=\"0.6.0\">" + kSensor + rect("<bsdf type=\"conductor\"/>") + "</scene>"));
-    CHECK(delta_weight(bsdf_of(old), 0.5f).g == Approx(cu.g));
+    CHECK(delta_weight(bsdf_of(old), 0.5f).g == Approx(fresnel_conductor(cu, cos_o).g).epsilon(1e-4));
     // Rough: Mitsuba's default distribution, Beckmann, of the given alpha (no warning).
     const SceneFile rc = x.load(rect(R"(<bsdf type="roughconductor"><float name="alpha" value="0.2"/><string name="material" value="Al"/></bsdf>)"));
     CHECK(bsdf_of(rc).min_roughness() == Approx(0.2f));
@@ -353,16 +369,19 @@ TEST_CASE("mitsuba: plastic and roughplastic are diffuse + GGX with the coating'
     CHECK(bsdf_of(n).min_roughness() < 0.05f);
 }
 
-TEST_CASE("mitsuba: a perfect-mirror conductor loads in any outer medium, a named metal only in vacuum", "[mitsuba]") {
+TEST_CASE("mitsuba: a conductor loads in any outer medium", "[mitsuba]") {
     // material "none" reflects everything whatever ext_eta is (the shared box's
-    // mirrors name extEta "air"); a tabulated metal's reflectance is for vacuum.
+    // mirrors name extEta "air"); a named metal's eta and k are divided by it.
     Xml x;
     const SceneFile m = x.load(rect(R"(<bsdf type="conductor"><string name="material" value="none"/>
         <string name="ext_eta" value="air"/></bsdf>)"));
     CHECK(bsdf_of(m).is_pure_delta());
-    CHECK_THAT(x.error(rect(R"(<bsdf type="conductor"><string name="material" value="Cu"/>
-        <string name="ext_eta" value="air"/></bsdf>)")),
-               Catch::Contains("medium other than vacuum"));
+    const SceneFile cu = x.load(rect(R"(<bsdf type="roughconductor"><string name="material" value="Cu"/>
+        <string name="ext_eta" value="air"/></bsdf>)"));
+    CHECK(cu.warnings.empty());
+    // A negative index is an error naming the element.
+    CHECK_THAT(x.error(rect(R"(<bsdf type="conductor"><rgb name="eta" value="-1, 1, 1"/><rgb name="k" value="1"/></bsdf>)")),
+               Catch::Contains("eta") && Catch::Contains("conductor"));
 }
 
 TEST_CASE("mitsuba: a 0.x bitmap opacity is its colour, a 3.x one its alpha channel", "[mitsuba]") {

@@ -385,6 +385,13 @@ TEST_CASE("scene file: unphysical material values are errors naming where they c
     CHECK_THAT(scene_with("ks.json", R"({"wall": {"type": "mirror", "ks": [1, -0.5, 1]}})"), Contains("Ks"));
     CHECK_THAT(scene_with("metal.json", R"({"wall": {"metal": 1}})"), Contains("materials.wall.metal"));
     CHECK_THAT(scene_with("map.json", R"({"wall": {"map_kd": 3}})"), Contains("materials.wall.map_kd"));
+    // A conductor's complex index: both parts, finite and >= 0.
+    CHECK_THAT(scene_with("eta-only.json", R"({"wall": {"conductor_eta": [0.2, 0.9, 1.1]}})"),
+               Contains("materials.wall") && Contains("conductor_k"));
+    CHECK_THAT(scene_with("k-neg.json", R"({"wall": {"conductor_eta": [0.2, 0.9, 1.1], "conductor_k": [3, -2, 2]}})"),
+               Contains("k-neg.json") && Contains("materials.wall"));
+    CHECK(scene_with("copper.json", R"({"wall": {"conductor_eta": [0.2, 0.9, 1.1], "conductor_k": [3.9, 2.5, 2.1], "alpha": 0.2}})")
+              .empty());
     CHECK_THAT(scene_with("ke.json", R"({"wall": {"ke": [-1, 0, 0]}})"), Contains("ke.json") && Contains("Ke"));
     // The same rule for an MTL file's own values, named by the OBJ and the material.
     CHECK_THAT(scene_with("mtl.json", "{}", "bright.obj"), Contains("bright.obj") && Contains("'wall'") && Contains("Kd"));

@@ -45,27 +45,14 @@ namespace {
 namespace fs = std::filesystem;
 using pugi::xml_node;
 
-/// Mitsuba's named conductors: normal-incidence reflectance computed from
-/// the RGB complex indices of refraction of its spectral data (as tabulated
-/// for RGB renderers), F0 = ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2).
+/// Mitsuba's named conductors: their RGB complex indices of refraction.
 struct NamedConductor {
     const char* name;
-    float r, g, b;
+    Vec3 eta, k;
 };
 constexpr NamedConductor kConductors[] = {
-    {"a-C", 0.2794f, 0.1940f, 0.1691f},  {"Ag", 0.9748f, 0.9575f, 0.9063f},   {"Al", 0.9280f, 0.9178f, 0.9189f},
-    {"AlAs", 0.3200f, 0.2783f, 0.1432f}, {"Au", 0.9667f, 0.8022f, 0.3240f},   {"Be", 0.5975f, 0.5206f, 0.5062f},
-    {"Cr", 0.6875f, 0.6491f, 0.6870f},   {"CsI", 0.1325f, 0.0675f, 0.0619f},  {"Cu", 0.9521f, 0.6197f, 0.5106f},
-    {"Cu2O", 0.3144f, 0.2458f, 0.2358f}, {"CuO", 0.2904f, 0.1985f, 0.1814f},  {"d-C", 0.2126f, 0.1579f, 0.1448f},
-    {"Hg", 0.8140f, 0.7702f, 0.7631f},   {"HgTe", 0.4699f, 0.3665f, 0.3507f}, {"Ir", 0.7426f, 0.6802f, 0.6308f},
-    {"K", 0.9539f, 0.9363f, 0.9201f},    {"Li", 0.9248f, 0.8844f, 0.7933f},   {"MgO", 0.1244f, 0.0603f, 0.0526f},
-    {"Mo", 0.6182f, 0.5618f, 0.5409f},   {"Na_palik", 0.9785f, 0.9597f, 0.9315f}, {"Nb", 0.5640f, 0.4894f, 0.4731f},
-    {"Ni_palik", 0.7001f, 0.5942f, 0.4936f}, {"Rh", 0.8243f, 0.7544f, 0.7216f}, {"Se", 0.3794f, 0.2506f, 0.2412f},
-    {"SiC", 0.2711f, 0.1873f, 0.1808f},  {"SnTe", 0.4071f, 0.1083f, 0.0152f}, {"Ta", 0.4564f, 0.3419f, 0.3799f},
-    {"Te", 0.6351f, 0.5781f, 0.5617f},   {"ThF4", 0.0861f, 0.0328f, 0.0264f}, {"TiC", 0.5482f, 0.4397f, 0.4116f},
-    {"TiN", 0.6409f, 0.4523f, 0.1975f},  {"TiO2", 0.3039f, 0.2246f, 0.2380f}, {"VC", 0.5297f, 0.4179f, 0.3798f},
-    {"V_palik", 0.5727f, 0.5107f, 0.5365f}, {"VN", 0.5251f, 0.3926f, 0.3106f}, {"W", 0.5746f, 0.4778f, 0.4330f},
-    {"none", 1.f, 1.f, 1.f},
+#include "conductor_data/conductor_ior.inc"
+    {"none", {0.f, 0.f, 0.f}, {1.f, 1.f, 1.f}},  // reflects everything: eta 0, k 1, as Mitsuba defines it
 };
 
 /// Mitsuba's named indices of refraction of dielectrics.
@@ -422,7 +409,7 @@ private:
     std::shared_ptr<Texture> opacity_texture(xml_node t);
     std::shared_ptr<Texture> bitmap(xml_node n, Props& p, bool opacity);
     std::shared_ptr<Texture> scale_texture(xml_node n, Props& p);
-    Color conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spec = nullptr);
+    ConductorIor conductor_ior(Props& p, xml_node n);
     MicrofacetType microfacet_type(Props& p, const std::string& def);
     std::shared_ptr<Texture> tint_texture(Props& p, const std::string& name);
     std::shared_ptr<Bsdf> build_phong(Props& p);
@@ -758,35 +745,29 @@ float Importer::ior(Props& p, const std::string& name, float def) {
     return v;
 }
 
-Color Importer::conductor_f0(Props& p, xml_node n, std::shared_ptr<Texture>* spec_texture) {
+/// A conductor's complex index of refraction relative to the medium outside
+/// (`ext_eta`): from `eta` and `k`, else from the named `material`.
+ConductorIor Importer::conductor_ior(Props& p, xml_node n) {
     const xml_node eta_n = take(p, "eta"), k_n = take(p, "k");
     const std::string def_material = version_major_ < 2 ? "Cu" : "none";
     const std::string material = get_string(p, "material", def_material);
     const float ext = ior(p, "ext_eta", 1.f);
-    Color f0;
+    ConductorIor c;
     if (eta_n || k_n) {
         if (!eta_n || !k_n) fail(n, "give both 'eta' and 'k' (or a 'material')");
-        const Color eta = colour_of(eta_n) / ext, k = colour_of(k_n) / ext;
-        f0 = conductor_reflectance(eta, k);
-    } else if (!named_conductor_reflectance(material, f0)) {
+        c = {colour_of(eta_n), colour_of(k_n)};
+    } else if (!named_conductor_ior(material, c)) {
         std::string list;
-        for (const NamedConductor& c : kConductors) list += (list.empty() ? "" : ", ") + std::string(c.name);
+        for (const NamedConductor& nc : kConductors) list += (list.empty() ? "" : ", ") + std::string(nc.name);
         fail(n, "unknown conductor material '" + material + "' (known: " + list + ")");
-    } else if (ext != 1.f && material != "none") {
-        // Only F0 in vacuum is tabulated here, not the metal's eta and k that
-        // ext_eta divides. 'none' (eta 0, k 1) reflects everything in any
-        // medium, since Fresnel's conductor reflectance is 1 at eta 0 for every
-        // k and angle, so it needs no table.
-        unsupported(n, "a named conductor other than 'none' in a medium other than vacuum (ext_eta; give eta and k instead)",
-                    "ignores ext_eta");
     }
-    if (spec_texture) {
-        // A texture (or colour) multiplying the reflectance per uv.
-        *spec_texture = get_texture(p, "specular_reflectance", Color(1.f));
-        return glm::clamp(f0, Color(0.f), Color(1.f));
+    c.eta /= ext, c.k /= ext;
+    try {
+        check_conductor_ior(c, "conductor");
+    } catch (const ParameterError& e) {
+        fail(n, e.what());
     }
-    const Color spec = get_colour(p, "specular_reflectance", Color(1.f));
-    return glm::clamp(f0 * spec, Color(0.f), Color(1.f));
+    return c;
 }
 
 // ---------------------------------------------------------------- BSDFs and textures
@@ -930,18 +911,19 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         if (type == "roughdiffuse") b->bsdf = build_rough_diffuse(p, std::move(kd));
         else b->bsdf = make_lambertian(std::move(kd));
     } else if (type == "conductor") {
-        b->bsdf = make_mirror(conductor_f0(p, n));
+        const ConductorIor c = conductor_ior(p, n);
+        b->bsdf = make_conductor(c, glm::clamp(get_colour(p, "specular_reflectance", Color(1.f)), Color(0.f), Color(1.f)));
     } else if (type == "roughconductor") {
         const MicrofacetType md = distribution("beckmann");
         const float alpha = roughness(0.1f);
-        std::shared_ptr<Texture> spec;
-        Color f0 = conductor_f0(p, n, &spec);
-        if (spec->is_constant()) f0 = glm::clamp(f0 * spec->mean(), Color(0.f), Color(1.f)), spec = nullptr;
+        const ConductorIor c = conductor_ior(p, n);
+        std::shared_ptr<Texture> spec = get_texture(p, "specular_reflectance", Color(1.f));
         if (alpha < kMinGgxAlpha) {
-            if (spec) unsupported(p.named.at("specular_reflectance"), "a textured reflectance on a smooth conductor", "uses its mean");
-            b->bsdf = make_mirror(spec ? f0 * spec->mean() : f0);
+            if (!spec->is_constant())
+                unsupported(p.named.at("specular_reflectance"), "a textured reflectance on a smooth conductor", "uses its mean");
+            b->bsdf = make_conductor(c, glm::clamp(spec->mean(), Color(0.f), Color(1.f)));
         } else {
-            b->bsdf = make_rough_conductor(f0, alpha, md, spec);
+            b->bsdf = make_rough_conductor(c, alpha, md, spec->is_constant() ? make_constant_texture(glm::clamp(spec->mean(), Color(0.f), Color(1.f))) : spec);
         }
     } else if (type == "dielectric" || type == "thindielectric" || type == "roughdielectric") {
         const float eta = ior(p, "int_ior", 1.5046f) / ior(p, "ext_ior", 1.00028f);
@@ -2144,10 +2126,17 @@ Color conductor_reflectance(const Color& eta, const Color& k) {
     return f;
 }
 
-bool named_conductor_reflectance(const std::string& name, Color& f0) {
+bool named_conductor_ior(const std::string& name, ConductorIor& ior) {
     for (const NamedConductor& c : kConductors)
-        if (name == c.name) return f0 = Color(c.r, c.g, c.b), true;
+        if (name == c.name) return ior = {Color(c.eta), Color(c.k)}, true;
     return false;
+}
+
+bool named_conductor_reflectance(const std::string& name, Color& f0) {
+    ConductorIor c;
+    if (!named_conductor_ior(name, c)) return false;
+    f0 = conductor_reflectance(c.eta, c.k);
+    return true;
 }
 
 SceneFile load_mitsuba_scene(const std::string& path, const SceneFileOptions& options) {

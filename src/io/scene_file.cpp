@@ -521,7 +521,8 @@ struct Override {
 MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Override& o) {
     const json& j = o.fields;
     const std::string where = "materials." + m.name;
-    check_keys(file, where, j, {"type", "kd", "ks", "ke", "alpha", "ns", "eta", "metal", "map_kd"});
+    check_keys(file, where, j,
+               {"type", "kd", "ks", "ke", "alpha", "ns", "eta", "metal", "map_kd", "conductor_eta", "conductor_k"});
     if (j.contains("kd")) m.kd = get_vec3(file, j["kd"], where + ".kd");
     if (j.contains("ks")) m.ks = get_vec3(file, j["ks"], where + ".ks");
     if (j.contains("ke")) m.ke = get_vec3(file, j["ke"], where + ".ke");
@@ -539,6 +540,20 @@ MaterialDesc apply_override(const std::string& file, MaterialDesc m, const Overr
         if (!(m.ni > 0.f)) fail(file, "'" + where + ".eta' must be positive");
     }
     if (j.contains("metal")) m.metal = get_bool(file, j["metal"], where + ".metal");
+    if (j.contains("conductor_eta") != j.contains("conductor_k"))
+        fail(file, "'" + where + "': give both 'conductor_eta' and 'conductor_k' (a conductor's complex index of refraction)");
+    if (j.contains("conductor_eta")) {
+        // The exact Fresnel term replaces Ks as the reflectance, which becomes a tint (1 unless given here).
+        ConductorIor ior{get_vec3(file, j["conductor_eta"], where + ".conductor_eta"),
+                         get_vec3(file, j["conductor_k"], where + ".conductor_k")};
+        try {
+            check_conductor_ior(ior, "'" + where + "'");
+        } catch (const ParameterError& e) {
+            fail(file, e.what());
+        }
+        m.conductor_ior = ior, m.metal = j.contains("metal") ? m.metal : true;
+        if (!j.contains("ks")) m.ks = Color(1.f);
+    }
     if (j.contains("map_kd")) {
         const std::string t = get_string(file, j["map_kd"], where + ".map_kd");
         m.map_kd = t.empty() ? "" : resolve_path(file, t, where + ".map_kd");

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "gdr/io/scene_file.h"
+#include "gdr/scene/microfacet.h"
 
 namespace gdr {
 
@@ -34,5 +35,9 @@ Color conductor_reflectance(const Color& eta, const Color& k);
 /// mirror), computed from its RGB complex index of refraction; false for an
 /// unknown name.
 bool named_conductor_reflectance(const std::string& name, Color& f0);
+
+/// The RGB complex index of refraction (unitless) of one of Mitsuba's named
+/// conductors (eta 0, k 1 for "none"); false for an unknown name.
+bool named_conductor_ior(const std::string& name, ConductorIor& ior);
 
 }  // namespace gdr

@@ -119,6 +119,11 @@ inline float transport_factor(const Bsdf& bsdf, const Vec3& wo, const Vec3& wi, 
 std::shared_ptr<Bsdf> make_lambertian(std::shared_ptr<Texture> kd);
 /// Ideal mirror with reflectance r (Fresnel-free, as MTL illum 5).
 std::shared_ptr<Bsdf> make_mirror(const Color& r);
+/// Smooth conductor (Mitsuba's `conductor`): a delta reflection of
+/// reflectance tint * fresnel_conductor(ior, cos) (unitless).
+std::shared_ptr<Bsdf> make_conductor(const ConductorIor& ior, const Color& tint = Color(1.f));
+/// Throws ParameterError naming `what` unless every eta and k of `ior` is finite and non-negative.
+void check_conductor_ior(const ConductorIor& ior, const std::string& what);
 /// Smooth dielectric interface with relative IOR eta (inside / outside), Fresnel-weighted reflection and refraction.
 std::shared_ptr<Bsdf> make_dielectric(float eta);
 /// A tinted smooth dielectric (Mitsuba's specular_reflectance and
@@ -137,6 +142,11 @@ std::shared_ptr<Bsdf> make_thin_dielectric(float eta, std::shared_ptr<Texture> r
 /// roughness, Schlick Fresnel with normal reflectance f0, times the
 /// `reflectance` texture where one is given (Mitsuba's specular_reflectance).
 std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha, MicrofacetType type = MicrofacetType::GGX,
+                                           std::shared_ptr<Texture> reflectance = nullptr);
+/// Rough conductor as Mitsuba's `roughconductor`: as above with the exact
+/// Fresnel term fresnel_conductor(ior, wi.h) in place of Schlick's.
+std::shared_ptr<Bsdf> make_rough_conductor(const ConductorIor& ior, float alpha,
+                                           MicrofacetType type = MicrofacetType::GGX,
                                            std::shared_ptr<Texture> reflectance = nullptr);
 /// Rough dielectric: GGX microfacet reflection and refraction (Walter et al. 2007).
 std::shared_ptr<Bsdf> make_rough_dielectric(float eta, float alpha);
@@ -209,6 +219,9 @@ struct MaterialDesc {
     float ni = 1.f;                ///< Index of refraction.
     float pr = -1.f;               ///< GGX roughness alpha; negative when absent.
     bool metal = false;            ///< Pm 1: conductor.
+    /// A conductor's complex index of refraction (scene-file overrides
+    /// `conductor_eta`, `conductor_k`): exact Fresnel, with ks as a tint.
+    std::optional<ConductorIor> conductor_ior;
     int illum = 2;                 ///< MTL illumination model.
     std::string map_kd;            ///< Absolute path of the diffuse texture, or empty.
     /// The texture map_kd names, read by the scene loaders

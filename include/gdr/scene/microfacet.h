@@ -247,4 +247,42 @@ inline float fresnel_dielectric(float cos_i, float eta) {
     return fresnel_dielectric(cos_i, eta, cos_t);
 }
 
+/// The complex index of refraction eta + i k of a conductor relative to the
+/// medium outside it, per RGB channel (unitless). The default, eta 0 and
+/// k 1, reflects everything at every angle (Mitsuba's material "none").
+struct ConductorIor {
+    Color eta{0.f};  ///< Real part: the refractive index.
+    Color k{1.f};    ///< Imaginary part: the extinction coefficient (>= 0).
+};
+
+/// Exact unpolarised Fresnel reflectance (unitless RGB in [0, 1]) of a smooth
+/// conductor at |cos_i|, the cosine of the incident direction with the
+/// (micro)surface normal. The Fresnel equations for a complex index: with
+/// a^2 + b^2 = |eta^2 - k^2 - sin^2 + 2 i eta k| and a = Re sqrt(that), the
+/// s-polarised reflectance is (a^2 + b^2 + cos^2 - 2 a cos) / (the same
+/// with + 2 a cos), and the p-polarised one that times (cos^2 (a^2 + b^2) +
+/// sin^4 - 2 a cos sin^2) / (the same with +) (Born and Wolf, "Principles
+/// of Optics", 1999, section 14.2). k = 0 gives fresnel_dielectric.
+inline Color fresnel_conductor(const ConductorIor& ior, float cos_i) {
+    const double c = std::min(1.0, double(std::abs(cos_i))), c2 = c * c, s2 = 1.0 - c2;
+    Color f;
+    for (int i = 0; i < 3; ++i) {
+        const double n = ior.eta[i], k = ior.k[i];
+        const double t0 = n * n - k * k - s2;
+        const double a2b2 = std::sqrt(t0 * t0 + 4.0 * n * n * k * k);
+        const double a = std::sqrt(std::max(0.0, 0.5 * (a2b2 + t0)));
+        const double rs_den = a2b2 + c2 + 2.0 * a * c;
+        const double rp_num = c2 * a2b2 + s2 * s2 - 2.0 * a * c * s2, rp_den = c2 * a2b2 + s2 * s2 + 2.0 * a * c * s2;
+        // Both denominators vanish only at grazing incidence on an index of 1, where the limit is 1.
+        if (!(rs_den > 0.0) || !(rp_den > 0.0)) {
+            f[i] = 1.f;
+            continue;
+        }
+        const double rs = (a2b2 + c2 - 2.0 * a * c) / rs_den;
+        const double rp = rs * rp_num / rp_den;
+        f[i] = float(std::clamp(0.5 * (rs + rp), 0.0, 1.0));
+    }
+    return f;
+}
+
 }  // namespace gdr

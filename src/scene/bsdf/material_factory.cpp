@@ -37,11 +37,16 @@ float checked_ior(const MaterialDesc& m) {
     return m.ni;
 }
 
-/// Conductor of reflectance f0: a delta mirror when the roughness is zero or
-/// below what GGX can represent in float.
+/// Conductor of reflectance f0, or of the exact Fresnel of the material's
+/// complex index tinted by f0: a delta reflection when the roughness is zero
+/// or below what GGX can represent in float.
 std::shared_ptr<Bsdf> conductor(const MaterialDesc& m, const Color& f0) {
     const float alpha = material_alpha(m);
-    if (m.pr == 0.f || alpha < kMinGgxAlpha) return make_mirror(f0);
+    const bool smooth = m.pr == 0.f || alpha < kMinGgxAlpha;
+    if (m.conductor_ior)
+        return smooth ? make_conductor(*m.conductor_ior, f0)
+                      : make_rough_conductor(*m.conductor_ior, alpha, MicrofacetType::GGX, make_constant_texture(f0));
+    if (smooth) return make_mirror(f0);
     return make_rough_conductor(f0, alpha);
 }
 
@@ -65,11 +70,7 @@ std::shared_ptr<Bsdf> bsdf_from_desc(const MaterialDesc& m, const std::string& t
     if (type == "diffuse") return make_lambertian(diffuse_texture(m));
     if (type == "mirror") return make_mirror(specular_colour(m));
     if (type == "dielectric") return make_dielectric(checked_ior(m));
-    if (type == "roughconductor") {
-        const float alpha = material_alpha(m);
-        if (alpha < kMinGgxAlpha) return make_mirror(specular_colour(m));
-        return make_rough_conductor(specular_colour(m), alpha);
-    }
+    if (type == "roughconductor") return conductor(m, specular_colour(m));
     if (type == "roughdielectric") return make_rough_dielectric(checked_ior(m), material_alpha(m));
     if (type == "plastic") return make_plastic(diffuse_texture(m), m.ks, material_alpha(m));
     std::string list;

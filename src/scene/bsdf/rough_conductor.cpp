@@ -1,5 +1,6 @@
-// Rough conductor: GGX or Beckmann microfacet reflection with Schlick
-// Fresnel, two-sided. f = F(wi.h) D(h) G2(wo, wi) / (4 cos_o cos_i), G2
+// Rough conductor: GGX or Beckmann microfacet reflection with the exact
+// Fresnel of a complex index of refraction (Mitsuba's roughconductor) or
+// Schlick's from a normal-incidence reflectance (an MTL's Ks), two-sided. f = F(wi.h) D(h) G2(wo, wi) / (4 cos_o cos_i), G2
 // height-correlated Smith, optionally times a reflectance texture (Mitsuba's
 // specular_reflectance).
 #include "gdr/core/error.h"
@@ -9,15 +10,16 @@
 namespace gdr {
 namespace {
 
-/// Metal with normal-incidence reflectance f0 (MTL Ks) and roughness alpha.
+/// Metal of roughness alpha whose Fresnel term is exact for `ior`, or
+/// Schlick's for normal-incidence reflectance f0 (MTL Ks) where ior is absent.
 /// GGX is sampled through visible normals, so the only lost samples are
 /// reflections that end below the horizon (the energy lost to
 /// single-scattering masking); Beckmann by D cos, which also loses normals
 /// facing away from wo.
 class RoughConductor final : public Bsdf {
 public:
-    RoughConductor(const Color& f0, Microfacet mf, std::shared_ptr<Texture> tint)
-        : f0_(f0), mf_(mf), tint_(std::move(tint)) {}
+    RoughConductor(const Color& f0, std::optional<ConductorIor> ior, Microfacet mf, std::shared_ptr<Texture> tint)
+        : f0_(ior ? fresnel_conductor(*ior, 1.f) : f0), ior_(ior), mf_(mf), tint_(std::move(tint)) {}
 
     std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
         if (wo.z == 0.f) return std::nullopt;
@@ -65,22 +67,40 @@ private:
     // The BSDF value of a reflection wo -> wi_up (upper hemisphere) with microfacet terms g.
     Color value(const GgxReflection& g, const Vec3& wi_up, const Vec2& uv) const {
         if (g.value <= 0.f) return Color(0.f);
-        const Color f = fresnel_schlick(f0_, glm::dot(wi_up, g.h)) * g.value;
+        const float cos_h = glm::dot(wi_up, g.h);
+        const Color f = (ior_ ? fresnel_conductor(*ior_, cos_h) : fresnel_schlick(f0_, cos_h)) * g.value;
         return tint_ ? f * tint_->eval(uv) : f;
     }
 
-    Color f0_;
+    Color f0_;                          // normal-incidence reflectance
+    std::optional<ConductorIor> ior_;   // exact Fresnel where given
     Microfacet mf_;
     std::shared_ptr<Texture> tint_;  // specular reflectance texture; null = 1
 };
 
 }  // namespace
 
-std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha, MicrofacetType type,
-                                           std::shared_ptr<Texture> reflectance) {
+namespace {
+
+void check_alpha(float alpha) {
     if (!std::isfinite(alpha) || alpha < 0.f)
         throw ParameterError("roughconductor: alpha must be a non-negative number, got " + std::to_string(alpha));
-    return std::make_shared<RoughConductor>(f0, Microfacet{type, std::max(alpha, kMinGgxAlpha)},
+}
+
+}  // namespace
+
+std::shared_ptr<Bsdf> make_rough_conductor(const Color& f0, float alpha, MicrofacetType type,
+                                           std::shared_ptr<Texture> reflectance) {
+    check_alpha(alpha);
+    return std::make_shared<RoughConductor>(f0, std::nullopt, Microfacet{type, std::max(alpha, kMinGgxAlpha)},
+                                            std::move(reflectance));
+}
+
+std::shared_ptr<Bsdf> make_rough_conductor(const ConductorIor& ior, float alpha, MicrofacetType type,
+                                           std::shared_ptr<Texture> reflectance) {
+    check_alpha(alpha);
+    check_conductor_ior(ior, "roughconductor");
+    return std::make_shared<RoughConductor>(Color(0.f), ior, Microfacet{type, std::max(alpha, kMinGgxAlpha)},
                                             std::move(reflectance));
 }
 
