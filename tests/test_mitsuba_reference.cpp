@@ -74,7 +74,7 @@ TEST_CASE("mitsuba reference: pt's image mean agrees with Mitsuba 0.6's path tra
         {"living-room", "scene.xml", 80, 45, false},
         {"dining-room", "scene.xml", 80, 45, false},
         {"sponza", "scene.xml", 80, 45, false},
-        {"torus", "scene.xml", 80, 60, false},
+        {"torus", "scene.xml", 80, 60, false, "pt", 32, "torus-4096spp"},
         {"water", "scene.xml", 80, 80, true},
         {"cbox-caustics", "cbox-caustics_rand_scene0.xml", 80, 80, false},
         {"box", "scene.xml", 80, 60, false, "bdpt", 512, "box-2048spp"},

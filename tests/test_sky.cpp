@@ -175,3 +175,77 @@ TEST_CASE("sky: the solar position at a date, time and place", "[sky]") {
     // Six hours later the sun has set at 45 degrees north (sunset near 19:40 solar time).
     CHECK(sun_direction_at(2010, 6, 21, 20, 30, 0, 45.0, 0.0, 0.0).y < 0.f);
 }
+
+TEST_CASE("sky: stretch and extend reach below the horizon as Mitsuba defines them", "[sky]") {
+    SkyParams p;
+    p.sun_dir = glm::normalize(Vec3(0.5f, 0.6f, -0.3f));
+    p.sun_scale = 0.f;
+    p.resolution = 64;
+    const HosekWilkieSky model(p.turbidity, p.albedo, kPiD / 2 - std::acos(double(p.sun_dir.y)));
+    const glm::dvec3 sun = glm::normalize(glm::dvec3(p.sun_dir));
+    // The texel centre of row y, column x in the lat-long convention, and the model's radiance there.
+    const auto centre = [&](int x, int y) {
+        const double th = kPiD * (y + 0.5) / 32, ph = 2 * kPiD * (x + 0.5) / 64;
+        return glm::dvec3(std::sin(th) * std::sin(ph), std::cos(th), -std::sin(th) * std::cos(ph));
+    };
+    const auto expected = [&](const glm::dvec3& d, double stretch, int c) {
+        // At zenith angle theta / stretch with the same azimuth; gamma from the true sun.
+        const double theta = std::acos(d.y) / stretch, h = std::hypot(d.x, d.z);
+        const glm::dvec3 dm(std::sin(theta) * d.x / h, std::cos(theta), std::sin(theta) * d.z / h);
+        return model.radiance(c, theta, std::acos(std::clamp(glm::dot(dm, sun), -1.0, 1.0)));
+    };
+    const Image plain = bake_sky(p);
+    p.stretch = 1.5f;
+    const Image stretched = bake_sky(p);
+    for (int y : {3, 10, 17, 20, 23}) {
+        const glm::dvec3 d = centre(9, y);
+        INFO("row " << y << ", zenith angle " << std::acos(d.y) * 180 / kPiD);
+        // Row 17 and below lie under the horizon: black unstretched, the
+        // model at theta / 1.5 when stretched (to 135 degrees: rows < 24).
+        if (d.y <= 0.0) CHECK(plain.at(9, y, 2) == 0.f);
+        else CHECK(plain.at(9, y, 2) == Approx(expected(d, 1.0, 2)).epsilon(1e-4));
+        CHECK(stretched.at(9, y, 2) == Approx(expected(d, 1.5, 2)).epsilon(1e-4));
+        CHECK(stretched.at(9, y, 2) > 0.f);
+    }
+    // Beyond 1.5 x 90 degrees black again; `extend` keeps the horizon's
+    // radiance there, faded by smoothstep towards the nadir.
+    CHECK(stretched.at(9, 29, 2) == 0.f);
+    p.extend = true;
+    const Image extended = bake_sky(p);
+    const glm::dvec3 d29 = centre(9, 29);
+    const double t = 2.0 - 2.0 * std::acos(d29.y) / kPiD, fade = t * t * (3 - 2 * t);
+    const double th_h = kPiD / 2 - 1e-4, hh = std::hypot(d29.x, d29.z);
+    const glm::dvec3 dh(std::sin(th_h) * d29.x / hh, std::cos(th_h), std::sin(th_h) * d29.z / hh);
+    CHECK(extended.at(9, 29, 2) == Approx(model.radiance(2, th_h, std::acos(glm::dot(dh, sun))) * fade).epsilon(1e-4));
+    CHECK(extended.at(9, 3, 2) == Approx(stretched.at(9, 3, 2)).epsilon(1e-6));  // above the horizon no fade
+    p.stretch = 2.5f;
+    CHECK_THROWS_AS(bake_sky(p), ParameterError);
+}
+
+TEST_CASE("sky: a stretched sun is drawn lower, and sunRadiusScale 0 makes it a directional light", "[sky][mitsuba]") {
+    SkyParams p;
+    p.sun_dir = glm::normalize(Vec3(0.3f, 0.8f, 0.2f));
+    p.stretch = 1.4f;
+    const Vec3 drawn = drawn_sun_direction(p);
+    CHECK(std::acos(drawn.y) == Approx(1.4 * std::acos(double(p.sun_dir.y))).epsilon(1e-5));
+    CHECK(drawn.x / drawn.z == Approx(p.sun_dir.x / p.sun_dir.z).epsilon(1e-5));  // same azimuth
+    // The directional sun carries the disk's power: radiance times the true solid angle.
+    const double omega = 2 * kPiD * (1 - std::cos(kSunAngularRadius));
+    const Color l = sun_radiance(std::acos(double(p.sun_dir.y)), p.turbidity);
+    CHECK(sun_irradiance(p).g == Approx(l.g * omega).epsilon(1e-5));
+    OutDir dir("sky-directional");
+    std::ofstream(dir("scene.xml")) << R"(<scene version="0.6.0"><sensor type="perspective"><float name="fov" value="40"/>
+      <transform name="toWorld"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+      <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="8"/></film></sensor>
+      <shape type="rectangle"/><emitter type="sunsky"><vector name="sunDirection" x="0.3" y="0.8" z="0.2"/>
+      <float name="sunRadiusScale" value="0"/><float name="sunScale" value="2"/></emitter></scene>)";
+    const SceneFile sf = load_scene_file(dir("scene.xml"));
+    REQUIRE(sf.scene->delta_lights().size() == 1);
+    const DeltaLight& sun = sf.scene->delta_lights()[0];
+    CHECK(sun.kind == DeltaLight::Kind::Directional);
+    CHECK(glm::dot(sun.direction, -glm::normalize(Vec3(0.3f, 0.8f, 0.2f))) == Approx(1.f).epsilon(1e-5));
+    CHECK(sun.intensity.g == Approx(2.0 * l.g * omega).epsilon(1e-4));
+    // The map holds the sky alone: no disk at the sun.
+    REQUIRE(sf.scene->environment());
+    CHECK(luminance(sf.scene->environment()->eval(glm::normalize(Vec3(0.3f, 0.8f, 0.2f)))) < 1.f);
+}

@@ -1861,7 +1861,9 @@ void Importer::emitter(xml_node n) {
         Props p = props(n);
         SkyParams sp;
         sp.turbidity = get_float(p, "turbidity", 3.f);
-        if (type != "sun") sp.albedo = get_colour(p, "albedo", Color(0.15f));
+        // Mitsuba 0.6's sky reads a default ground albedo of 0.2 (its
+        // documentation says 0.15); its renders are the reference.
+        if (type != "sun") sp.albedo = get_colour(p, "albedo", Color(0.2f));
         const long long res = get_int(p, "resolution", 512);
         sp.resolution = int(std::clamp<long long>(res, -1, 1 << 20));
         const float scale = get_float(p, "scale", 1.f);
@@ -1874,16 +1876,9 @@ void Importer::emitter(xml_node n) {
             sp.sun_scale = type == "sun" ? scale : 0.f;
         }
         if (type != "sky") sp.sun_radius_scale = get_float(p, "sun_radius_scale", 1.f);
-        if (type != "sun") {
-            bool given = false;
-            const float stretch = get_float(p, "stretch", 1.f, &given);
-            if (given && stretch != 1.f)
-                unsupported(n, fmt::format("'stretch' {} (gdr renders the sky above the horizon only)", stretch),
-                            "uses 1");
-            const xml_node ext = take(p, "extend");
-            if (ext && raw(ext, "value") != "false")
-                unsupported(ext, "'extend' (gdr renders the sky above the horizon only)", "leaves it black below");
-        }
+        sp.stretch = get_float(p, "stretch", 1.f);
+        if (!(sp.stretch >= 1.f && sp.stretch <= 2.f)) fail(n, fmt::format("'stretch' {} must be in [1, 2]", sp.stretch));
+        if (type != "sun") sp.extend = get_bool(p, "extend", false);
         ignore(p, {"sampling_weight"});
         const glm::mat3 xf = glm::mat3(mirror_ * get_transform(p, "to_world"));
         const xml_node sun_node = take(p, "sun_direction");
@@ -1905,7 +1900,16 @@ void Importer::emitter(xml_node n) {
         }
         finish(p);
         try {
-            environment_ = Environment::from_map(bake_sky(sp), xf, 1.f, doc_of(n).file + ": " + type);
+            // sunRadiusScale 0: the sun is a directional light, as in Mitsuba.
+            if (sp.sun_radius_scale == 0.f && sp.sun_scale > 0.f) {
+                DeltaLight l;
+                l.kind = DeltaLight::Kind::Directional;
+                l.direction = -glm::normalize(xf * drawn_sun_direction(sp));
+                l.intensity = sun_irradiance(sp);
+                delta_lights_.push_back(l);
+            }
+            if (sp.sky_scale > 0.f || sp.sun_radius_scale > 0.f)
+                environment_ = Environment::from_map(bake_sky(sp), xf, 1.f, doc_of(n).file + ": " + type);
         } catch (const Error& e) {
             fail(n, e.what());
         }

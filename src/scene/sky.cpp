@@ -142,16 +142,53 @@ Color sun_radiance(double theta, double turbidity) {
     return Color(float(std::max(r, 0.0)), float(std::max(gg, 0.0)), float(std::max(b, 0.0)));
 }
 
+namespace {
+
+// The true sun direction, normalised; throws on a zero or non-finite one.
+glm::dvec3 true_sun(const SkyParams& p) {
+    const double len = glm::length(glm::dvec3(p.sun_dir));
+    if (!(len > 0.0) || !std::isfinite(len)) throw ParameterError("sky: the sun direction must be a non-zero vector");
+    return glm::dvec3(p.sun_dir) / len;
+}
+
+// A unit direction (+y up) of zenith angle theta and the azimuth of `like`
+// (any direction not along the y axis; along it, azimuth 0, towards -z).
+glm::dvec3 at_zenith(double theta, const glm::dvec3& like) {
+    const double h = std::hypot(like.x, like.z);
+    const double sx = h > 1e-12 ? like.x / h : 0.0, sz = h > 1e-12 ? like.z / h : -1.0;
+    return {std::sin(theta) * sx, std::cos(theta), std::sin(theta) * sz};
+}
+
+// Hermite smoothstep of x over [0, 1].
+double smoothstep01(double x) {
+    const double t = std::clamp(x, 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+}  // namespace
+
+Vec3 drawn_sun_direction(const SkyParams& p) {
+    const glm::dvec3 sun = true_sun(p);
+    const double theta = std::acos(std::clamp(sun.y, -1.0, 1.0));
+    return Vec3(at_zenith(std::min(theta * double(p.stretch), kPiD), sun));
+}
+
+Color sun_irradiance(const SkyParams& p) {
+    const double sun_theta = std::acos(std::clamp(true_sun(p).y, -1.0, 1.0));
+    const double omega_sun = 2 * kPiD * (1 - std::cos(kSunAngularRadius));
+    return sun_radiance(sun_theta, p.turbidity) * float(omega_sun) * p.sun_scale;
+}
+
 Image bake_sky(const SkyParams& p) {
     if (p.resolution < 4 || p.resolution % 2 != 0 || p.resolution > 16384)
         throw ParameterError(fmt::format("sky: resolution {} must be even and in [4, 16384]", p.resolution));
     if (!(p.sky_scale >= 0.f) || !(p.sun_scale >= 0.f) || !std::isfinite(p.sky_scale) || !std::isfinite(p.sun_scale))
         throw ParameterError("sky: the sky and sun scales must be finite and non-negative");
-    if (!(p.sun_radius_scale > 0.f) || !std::isfinite(p.sun_radius_scale))
-        throw ParameterError(fmt::format("sky: sunRadiusScale {} must be positive", p.sun_radius_scale));
-    const double len = glm::length(glm::dvec3(p.sun_dir));
-    if (!(len > 0.0) || !std::isfinite(len)) throw ParameterError("sky: the sun direction must be a non-zero vector");
-    const glm::dvec3 sun = glm::dvec3(p.sun_dir) / len;
+    if (!(p.sun_radius_scale >= 0.f) || !std::isfinite(p.sun_radius_scale))
+        throw ParameterError(fmt::format("sky: sunRadiusScale {} must be >= 0 (0: a directional sun)", p.sun_radius_scale));
+    if (!(p.stretch >= 1.f && p.stretch <= 2.f))
+        throw ParameterError(fmt::format("sky: stretch {} must be in [1, 2]", p.stretch));
+    const glm::dvec3 sun = true_sun(p);
     const double sun_theta = std::acos(std::clamp(sun.y, -1.0, 1.0));
     const int w = p.resolution, h = p.resolution / 2;
     Image map(w, h, 3, 0.f);
@@ -164,30 +201,39 @@ Image bake_sky(const SkyParams& p) {
         for (int y = 0; y < h; ++y)
             for (int x = 0; x < w; ++x) {
                 const glm::dvec3 d = dir((x + 0.5) / w, (y + 0.5) / h);
-                if (d.y <= 0.0) continue;  // below the horizon: black
-                const double theta = std::acos(std::min(d.y, 1.0));
-                const double gamma = std::acos(std::clamp(glm::dot(d, sun), -1.0, 1.0));
+                const double theta = std::acos(std::clamp(d.y, -1.0, 1.0));
+                // The model's zenith angle; at or below its horizon black, or
+                // (extend) the radiance just above it.
+                double model_theta = theta / p.stretch;
+                if (std::cos(model_theta) <= 0.0) {
+                    if (!p.extend) continue;
+                    model_theta = kPiD / 2 - 1e-4;
+                }
+                const glm::dvec3 dm = at_zenith(model_theta, d);
+                const double gamma = std::acos(std::clamp(glm::dot(dm, sun), -1.0, 1.0));
+                const double fade = p.extend ? smoothstep01(2.0 - 2.0 * theta / kPiD) : 1.0;
                 for (int c = 0; c < 3; ++c)
-                    map.at(x, y, c) = float(std::max(0.0, sky.radiance(c, theta, gamma)) * p.sky_scale);
+                    map.at(x, y, c) = float(std::max(0.0, sky.radiance(c, model_theta, gamma)) * fade * p.sky_scale);
             }
     }
-    if (p.sun_scale > 0.f) {
+    if (p.sun_scale > 0.f && p.sun_radius_scale > 0.f) {
         // The disk carries the true sun's radiance times its true solid angle,
         // spread evenly over a cone sunRadiusScale times wider, by stratified
         // samples of the cone each deposited over its texel's exact solid angle.
         const Color l_sun = sun_radiance(sun_theta, p.turbidity) * p.sun_scale;
+        const glm::dvec3 drawn = glm::dvec3(drawn_sun_direction(p));
         const double omega_sun = 2 * kPiD * (1 - std::cos(kSunAngularRadius));
         const double cos_max = std::cos(std::min(kSunAngularRadius * p.sun_radius_scale, kPiD));
         const double covered = 0.5 * (1 - cos_max);
         const int n = std::max(32, int(std::ceil(std::sqrt(std::max(100.0, covered * 1000.0 * w * h)))));
-        const glm::dvec3 t = std::abs(sun.x) > 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
-        const glm::dvec3 b1 = glm::normalize(glm::cross(sun, t)), b2 = glm::cross(sun, b1);
+        const glm::dvec3 t = std::abs(drawn.x) > 0.9 ? glm::dvec3(0, 1, 0) : glm::dvec3(1, 0, 0);
+        const glm::dvec3 b1 = glm::normalize(glm::cross(drawn, t)), b2 = glm::cross(drawn, b1);
         const double per = omega_sun / (double(n) * n);
         for (int i = 0; i < n; ++i)
             for (int j = 0; j < n; ++j) {
                 const double ct = 1 - (i + 0.5) / n * (1 - cos_max), st = std::sqrt(std::max(0.0, 1 - ct * ct));
                 const double ph = 2 * kPiD * (j + 0.5) / n;
-                const glm::dvec3 d = sun * ct + (b1 * std::cos(ph) + b2 * std::sin(ph)) * st;
+                const glm::dvec3 d = drawn * ct + (b1 * std::cos(ph) + b2 * std::sin(ph)) * st;
                 double u = std::atan2(d.x, -d.z) / (2 * kPiD);
                 if (u < 0) u += 1;
                 const double v = std::acos(std::clamp(d.y, -1.0, 1.0)) / kPiD;

@@ -55,9 +55,30 @@ struct SkyParams {
     Vec3 sun_dir{0.f, 1.f, 0.f};     ///< Unit local direction towards the sun (+y up).
     float sky_scale = 1.f;           ///< Factor on the sky's radiance (0: no sky).
     float sun_scale = 1.f;           ///< Factor on the sun's radiance (0: no sun).
-    float sun_radius_scale = 1.f;    ///< Factor on the sun's apparent radius (> 0).
+    /// Factor on the sun's apparent radius (> 0 for a disk in the map; 0
+    /// makes it a directional light, sun_light(), and leaves it out of the map).
+    float sun_radius_scale = 1.f;
     int resolution = 512;            ///< Map width in texels; the height is half of it.
+    /// Mitsuba's `stretch`, in [1, 2]: a direction at zenith angle theta shows
+    /// the model's sky at theta / stretch, so the sky reaches below the
+    /// horizon (to stretch * 90 degrees), and the sun is drawn at stretch
+    /// times its zenith angle.
+    float stretch = 1.f;
+    /// Mitsuba's `extend`: below the stretched horizon the sky keeps its
+    /// horizon radiance, and the whole sky is faded by smoothstep(2 - 2
+    /// theta / pi), reaching black at the nadir (a kludge for scenes that
+    /// see below the horizon, as Mitsuba says).
+    bool extend = false;
 };
+
+/// The unit local direction (+y up) at which the sun is drawn: the true sun
+/// direction with its zenith angle multiplied by `stretch`.
+Vec3 drawn_sun_direction(const SkyParams& p);
+
+/// The irradiance (W/m^2, linear sRGB, scene units) of the sun as a
+/// directional light, for sun_radius_scale 0: its radiance times the true
+/// sun's solid angle, times sun_scale.
+Color sun_irradiance(const SkyParams& p);
 
 /// Angular radius of the sun seen from the earth, radians (0.5358 degrees diameter).
 inline constexpr double kSunAngularRadius = 0.5358 * 0.5 * 3.14159265358979323846 / 180.0;
@@ -67,8 +88,9 @@ inline constexpr double kSunAngularRadius = 0.5358 * 0.5 * 3.1415926535897932384
 /// below the horizon, where the air-mass formula ends.
 Color sun_radiance(double theta, double turbidity);
 
-/// Bakes sky (texel centres, as Mitsuba rasterises it) and sun disk into a
-/// resolution x resolution/2 RGB lat-long map of local radiance.
+/// Bakes sky (texel centres, as Mitsuba rasterises it) and sun disk (unless
+/// sun_radius_scale is 0) into a resolution x resolution/2 RGB lat-long map
+/// of local radiance.
 /// Throws ParameterError on parameters out of range.
 Image bake_sky(const SkyParams& p);
 
