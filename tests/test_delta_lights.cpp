@@ -125,6 +125,16 @@ std::unique_ptr<Scene> lit_box(int res, std::vector<DeltaLight> lights, bool kee
 DeltaLight box_point() { return point_light(Vec3(0.2f, 1.5f, 0.1f), Color(1.2f, 1.f, 0.8f)); }
 DeltaLight box_spot() { return spot_light(Vec3(-0.3f, 1.9f, 0.3f), Vec3(0.35f, -1.f, -0.2f), Color(6.f), 40.f, 25.f); }
 DeltaLight box_sun() { return directional_light(Vec3(0.25f, -0.45f, -1.f), Color(2.f, 1.8f, 1.5f)); }
+// The box's spot projecting a coloured checkerboard of 3 x 3 squares.
+DeltaLight box_textured_spot() {
+    DeltaLight l = box_spot();
+    l.axis_x = glm::normalize(glm::cross(l.direction, Vec3(0.f, 0.f, 1.f)));
+    l.axis_y = glm::cross(l.direction, l.axis_x);
+    l.texture = make_uv_transformed_texture(make_checkerboard_texture(make_constant_texture(Color(1.f, 0.3f, 0.1f)),
+                                                                      make_constant_texture(Color(0.1f, 0.4f, 1.f))),
+                                            glm::mat3(3.f, 0.f, 0.f, 0.f, 3.f, 0.f, 0.f, 0.f, 1.f));
+    return l;
+}
 
 }  // namespace
 
@@ -201,6 +211,53 @@ TEST_CASE("delta lights: a point, spot and directional light on a diffuse plane 
         CHECK(ok < 0.01);
         CHECK(bad > 0.05);
     }
+    SECTION("spot projecting a texture") {
+        // A 2 x 2 image (row 0 at the top: red, green / blue, white), read
+        // bilinearly, projected by a spot looking straight down whose local
+        // x is world +x and local y world +z. Mitsuba reads the image at
+        // (0.5 + 0.5 x / (z tan cutoff), 0.5 + 0.5 y / (z tan cutoff)) with v
+        // running down the image, so local +y shows its lower row.
+        Image img(2, 2, 3);
+        img.set_rgb(0, 0, Color(1.f, 0.2f, 0.2f)), img.set_rgb(1, 0, Color(0.2f, 1.f, 0.2f));
+        img.set_rgb(0, 1, Color(0.2f, 0.2f, 1.f)), img.set_rgb(1, 1, Color(1.f));
+        DeltaLight l = spot_light(Vec3(0.2f, 2.f, -0.1f), Vec3(0.f, -1.f, 0.f), Color(3.f), 30.f, 30.f);
+        l.axis_x = Vec3(1.f, 0.f, 0.f), l.axis_y = Vec3(0.f, 0.f, 1.f);
+        l.texture = make_image_texture(img);
+        const Image got = render_pt(l);
+        const auto field = [&](bool v_up) {
+            return pixel_means(*scene, [&](const Vec3& p) {
+                const Vec3 d = p - l.position;
+                const float r2 = glm::dot(d, d), r = std::sqrt(r2), cos = -d.y / r;
+                if (glm::dot(d / r, l.direction) <= std::cos(l.cutoff)) return Color(0.f);
+                // Local coordinates of the emission direction, and Mitsuba's uv (v from the top).
+                const float x = d.x / r, y = d.z / r, z = -d.y / r, k = 0.5f / (z * std::tan(l.cutoff));
+                const float u = 0.5f + x * k, v_top = 0.5f + y * k;
+                const Color tex = l.texture->eval(Vec2(u, v_up ? v_top : 1.f - v_top));
+                return l.intensity * tex * (rho * kInvPi * cos / r2);
+            });
+        };
+        // Pixels straddling the cutoff are left out, as for the spot above.
+        const Image want = field(false), wrong = field(true);
+        double ok = 0.0, bad = 0.0;
+        for (int y = 0; y < res; ++y)
+            for (int x = 0; x < res; ++x) {
+                bool straddles = false;
+                for (int c = 0; c < 4; ++c) {
+                    const Ray r = scene->camera().generate_ray(Vec2(float(x + (c & 1)), float(y + (c >> 1))));
+                    const Vec3 p = r.o + r.d * (-r.o.y / r.d.y);
+                    straddles |= std::acos(glm::dot(glm::normalize(p - l.position), l.direction)) > 0.9f * l.cutoff;
+                }
+                if (straddles) continue;
+                for (int ch = 0; ch < 3; ++ch) {
+                    const double w = want.rgb(x, y)[ch], g = got.rgb(x, y)[ch], v = wrong.rgb(x, y)[ch];
+                    ok = std::max(ok, std::abs(g / w - 1.0));
+                    bad = std::max(bad, std::abs(g / v - 1.0));
+                }
+            }
+        CAPTURE(ok, bad);
+        CHECK(ok < 0.01);
+        CHECK(bad > 0.05);  // the image upside down
+    }
     SECTION("directional") {
         const DeltaLight l = directional_light(Vec3(0.3f, -1.f, 0.2f), Color(1.f, 2.f, 3.f));
         const Image got = render_pt(l);
@@ -273,6 +330,7 @@ TEST_CASE("delta lights: bdpt and light tracing equal pt on a box lit only by ea
     const Case cases[] = {{"point", {box_point()}, false},
                           {"spot", {box_spot()}, false},
                           {"directional", {box_sun()}, false},
+                          {"spot projecting a texture", {box_textured_spot()}, false},
                           {"point and spot with the ceiling light", {box_point(), box_spot()}, true}};
     for (const Case& c : cases) {
         INFO(c.name);
@@ -302,8 +360,9 @@ TEST_CASE("delta lights: gpt's gradients and primal equal pt's on a point- and a
     // the offset's BSDF density kept in the delta light's MIS weight (dx z
     // 13 to 15, primal z 58 to 66; the spot box did not reveal that one).
     const int res = 24, block = 6, runs = 16;
-    for (const auto& lights : {std::vector<DeltaLight>{box_point()}, std::vector<DeltaLight>{box_spot()}}) {
-        INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : "spot"));
+    for (const auto& lights : {std::vector<DeltaLight>{box_point()}, std::vector<DeltaLight>{box_spot()},
+                               std::vector<DeltaLight>{box_textured_spot()}}) {
+        INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : lights[0].texture ? "textured spot" : "spot"));
         const auto scene = lit_box(res, lights);
         const std::vector<FrameBuffer> pt = render_runs(*scene, "pt", Params(), 128, runs, 1000);
         for (const char* shift : kShifts) {
@@ -351,8 +410,9 @@ TEST_CASE("delta lights: gbdpt's gradients and primal equal bdpt's on a point- a
     // weights (the light point is shared in the area measure): taking it
     // with a surface's cosine there changed nothing.
     const int res = 24, block = 6, runs = 16;
-    for (const auto& lights : {std::vector<DeltaLight>{box_point()}, std::vector<DeltaLight>{box_spot()}}) {
-        INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : "spot"));
+    for (const auto& lights : {std::vector<DeltaLight>{box_point()}, std::vector<DeltaLight>{box_spot()},
+                               std::vector<DeltaLight>{box_textured_spot()}}) {
+        INFO((lights[0].kind == DeltaLight::Kind::Point ? "point" : lights[0].texture ? "textured spot" : "spot"));
         const auto scene = lit_box(res, lights);
         const std::vector<FrameBuffer> ref = render_runs(*scene, "bdpt", Params(), 64, runs, 1000);
         const BlockStats ref_dx = difference_stats(ref, "color", true, false, block);
@@ -479,9 +539,27 @@ TEST_CASE("delta lights: Mitsuba's point, spot and directional emitters import w
         CHECK(at(26.25f) == Approx(0.5f).epsilon(1e-4));
         CHECK(at(31.f) == 0.f);
     }
-    CHECK_THROWS_WITH(load_scene_file(xml(R"(<emitter type="spot"><texture name="texture" type="bitmap">
-                                               <string name="filename" value="x.png"/></texture></emitter>)")),
-                      Catch::Contains("scene.xml:") && Catch::Contains("'texture' is not supported"));
+    {
+        // A projected checkerboard (2 x 2 squares over the image), the spot
+        // looking down -y with to_world's x along world +x and y along +z:
+        // towards local +x and +y Mitsuba reads uv (0.5 + a, 0.5 + a), which
+        // is in color0's square (both fractions above 1/2), towards local +x
+        // and -y uv (0.5 + a, 0.5 - a), color1's.
+        const SceneFile sf = load_scene_file(xml(R"(<emitter type="spot"><float name="cutoffAngle" value="40"/>
+            <transform name="toWorld"><rotate x="1" angle="90"/></transform>
+            <texture name="texture" type="checkerboard"><rgb name="color0" value="1, 0, 0"/><rgb name="color1" value="0, 0, 1"/>
+            </texture><rgb name="intensity" value="2"/></emitter>)"));
+        REQUIRE(sf.scene->delta_lights().size() == 1);
+        const DeltaLight& s = sf.scene->delta_lights()[0];
+        REQUIRE(s.texture);
+        CHECK(glm::length(s.direction - Vec3(0.f, -1.f, 0.f)) < 1e-6f);
+        const Vec3 plus_y = glm::normalize(Vec3(0.2f, -1.f, 0.2f)), minus_y = glm::normalize(Vec3(0.2f, -1.f, -0.2f));
+        CHECK(s.intensity_towards(plus_y) == Color(2.f, 0.f, 0.f));
+        CHECK(s.intensity_towards(minus_y) == Color(0.f, 0.f, 2.f));
+        // A constant texture changes nothing, as in Mitsuba.
+        const SceneFile c = load_scene_file(xml(R"(<emitter type="spot"><rgb name="texture" value="0.5"/></emitter>)"));
+        CHECK_FALSE(c.scene->delta_lights()[0].texture);
+    }
     CHECK_THROWS_WITH(load_scene_file(xml(R"(<emitter type="directional"><vector name="direction" x="0" y="0" z="0"/></emitter>)")),
                       Catch::Contains("direction is zero"));
 }

@@ -1956,9 +1956,12 @@ void Importer::delta_emitter(xml_node n, const std::string& type) {
         l.position = get_point(p, "position", Vec3(xf * glm::vec4(0.f, 0.f, 0.f, 1.f)));
         l.intensity = colour("intensity");
         if (type == "spot") {
-            if (xml_node t = take(p, "texture"); t)
-                fail(t, "a spot emitter's projected 'texture' is not supported (remove it to light with the spot's intensity)");
+            if (p.named.count("texture")) {
+                auto t = get_texture(p, "texture", Color(1.f));
+                if (!t->is_constant()) l.texture = std::move(t);  // Mitsuba too ignores a constant one
+            }
             l.direction = Vec3(xf * glm::vec4(0.f, 0.f, 1.f, 0.f));
+            l.axis_x = Vec3(xf * glm::vec4(1.f, 0.f, 0.f, 0.f)), l.axis_y = Vec3(xf * glm::vec4(0.f, 1.f, 0.f, 0.f));
             const float cutoff = get_float(p, "cutoff_angle", 20.f);
             const float beam = get_float(p, "beam_width", 0.75f * cutoff);
             if (!(cutoff > 0.f && cutoff <= 180.f)) fail(n, "the spot's 'cutoff_angle' must be in (0, 180] degrees");

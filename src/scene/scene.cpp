@@ -829,6 +829,16 @@ void check_delta_lights(std::vector<DeltaLight>& lights, const std::string& orig
         if (l.kind == DeltaLight::Kind::Spot &&
             !(l.beam_width > 0.f && l.beam_width <= l.cutoff && l.cutoff <= kPi))
             throw InputError(what + "a spot needs 0 < beam width <= cutoff angle <= 180 degrees");
+        if (l.kind == DeltaLight::Kind::Spot && l.texture) {
+            // A projected image needs a cone narrower than a hemisphere, and an
+            // orthonormal frame about the axis (x and y keep their handedness).
+            if (!(l.cutoff < 0.5f * kPi)) throw InputError(what + "a spot with a projected texture needs a cutoff below 90 degrees");
+            const Vec3 x = l.axis_x - glm::dot(l.axis_x, l.direction) * l.direction;
+            if (!(glm::length(x) > 1e-6f) || !is_finite(x)) throw InputError(what + "the spot's x axis is along its direction");
+            l.axis_x = glm::normalize(x);
+            const Vec3 y = glm::cross(l.direction, l.axis_x);
+            l.axis_y = glm::dot(y, l.axis_y) >= 0.f ? y : -y;
+        }
     }
 }
 

@@ -12,12 +12,18 @@
 // "Mitsuba renderer documentation", 2014): full intensity within beamWidth
 // of the axis, zero beyond cutoffAngle, and in between linear in the angle,
 // I (cutoff - theta) / (cutoff - beamWidth). Emission directions of a spot
-// are sampled uniformly in the cutoff cone, as Mitsuba does.
+// are sampled uniformly in the cutoff cone, as Mitsuba does. A spot may
+// project a texture along its axis, as Mitsuba's does: the intensity towards a
+// direction of local coordinates (x, y, z) in the spot's frame is multiplied
+// by the texture at Mitsuba's uv (0.5 + 0.5 x / (z tan cutoff), 0.5 + 0.5 y /
+// (z tan cutoff)), so the image fills the square around the cutoff cone.
 #pragma once
 
 #include <cmath>
+#include <memory>
 
 #include "gdr/core/math.h"
+#include "gdr/scene/texture.h"
 #include "gdr/scene/warp.h"
 
 namespace gdr {
@@ -38,6 +44,12 @@ struct DeltaLight {
     Color intensity{1.f};
     float cutoff = 0.f;            ///< Spot: cutoff angle (radians), no light beyond it.
     float beam_width = 0.f;        ///< Spot: angle (radians) within which the intensity is full; <= cutoff.
+    /// Spot: unit local x and y axes of its frame (z is `direction`), which
+    /// orient a projected texture.
+    Vec3 axis_x{1.f, 0.f, 0.f}, axis_y{0.f, 1.f, 0.f};
+    /// Spot: a texture projected along the axis (a unitless factor on the
+    /// intensity; gdr's uv convention, v = 0 at the image's bottom), or null.
+    std::shared_ptr<const Texture> texture;
 
     /// True for the kinds that are a delta in position (point and spot).
     bool is_positional() const { return kind != Kind::Directional; }
@@ -46,7 +58,17 @@ struct DeltaLight {
     /// point or spot light: the spot's falloff applied.
     Color intensity_towards(const Vec3& w) const {
         if (kind != Kind::Spot) return intensity;
-        return intensity * spot_falloff(glm::dot(w, direction));
+        const float cos_theta = glm::dot(w, direction), f = spot_falloff(cos_theta);
+        if (!texture || f == 0.f) return intensity * f;
+        return intensity * f * texture->eval(projected_uv(w));
+    }
+
+    /// The uv (gdr's convention) at which a spot's texture is read for unit
+    /// world direction w inside its cone: Mitsuba's (0.5 + 0.5 x / (z tan
+    /// cutoff), 0.5 + 0.5 y / (z tan cutoff)), whose v runs down the image.
+    Vec2 projected_uv(const Vec3& w) const {
+        const float z = glm::dot(w, direction), k = 0.5f / (z * std::tan(cutoff));
+        return {0.5f + glm::dot(w, axis_x) * k, 0.5f - glm::dot(w, axis_y) * k};
     }
 
     /// The spot's falloff factor (unitless, in [0, 1]) at cos(theta) from its axis.
@@ -80,7 +102,7 @@ struct DeltaLight {
     /// pi r^2 of the disk of radius `scene_radius` it crosses (as pbrt-v4's
     /// power light sampler estimates it).
     double power(float scene_radius) const {
-        const double y = double(luminance(intensity));
+        const double y = double(luminance(intensity)) * (texture ? double(luminance(texture->mean())) : 1.0);
         switch (kind) {
             case Kind::Point: return 4.0 * 3.14159265358979323846 * y;
             case Kind::Spot: {
