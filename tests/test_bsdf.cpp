@@ -146,6 +146,12 @@ std::vector<Named> glossy_and_diffuse() {
         {"beckmann aluminium (eta, k) a=0.35",
          make_rough_conductor(ConductorIor{Color(1.657f, 0.880f, 0.521f), Color(9.224f, 6.270f, 4.837f)}, 0.35f,
                               MicrofacetType::Beckmann, make_constant_texture(Color(0.8f)))},
+        {"blend of lambertian and conductor a=0.2 by a checkerboard",
+         make_blend(make_lambertian(make_constant_texture(Color(0.8f, 0.5f, 0.2f))),
+                    make_rough_conductor(Color(0.9f, 0.6f, 0.3f), 0.2f),
+                    make_checkerboard_texture(make_constant_texture(Color(0.2f)), make_constant_texture(Color(0.9f))))},
+        {"mixture of lambertian and roughdielectric 1.5 a=0.3",
+         make_mixture({make_lambertian(make_constant_texture(Color(0.6f))), make_rough_dielectric(1.5f, 0.3f)}, {0.3f, 0.6f})},
         {"textured conductor a=0.3", make_rough_conductor(Color(0.9f), 0.3f, MicrofacetType::GGX,
                                                           make_checkerboard_texture(make_constant_texture(Color(0.2f)),
                                                                                     make_constant_texture(Color(0.9f))))},
@@ -288,6 +294,57 @@ TEST_CASE("bsdf chi2: rough conductor with exact Fresnel", "[bsdf][statistical]"
     check_chi2(*make_rough_conductor(copper, 0.1f), "copper GGX alpha 0.1", {10.f, 50.f, 80.f});
     check_chi2(*make_rough_conductor(copper, 0.4f, MicrofacetType::Beckmann), "copper Beckmann alpha 0.4",
                {10.f, 50.f, 80.f});
+}
+
+TEST_CASE("bsdf chi2: blend and mixture", "[bsdf][statistical]") {
+    check_chi2(*make_blend(make_lambertian(make_constant_texture(Color(0.5f))), make_rough_conductor(Color(0.9f), 0.1f),
+                           make_constant_texture(Color(0.7f))),
+               "blend lambertian / conductor 0.1 at 0.7", {10.f, 50.f, 80.f});
+    check_chi2(*make_mixture({make_rough_conductor(Color(0.9f), 0.3f, MicrofacetType::Beckmann),
+                              make_oren_nayar(make_constant_texture(Color(0.7f)), 0.4f), make_rough_dielectric(1.33f, 0.3f)},
+                             {0.2f, 0.5f, 0.3f}),
+               "mixture of three", {10.f, 50.f, 80.f});
+}
+
+TEST_CASE("bsdf: a mixture is the weighted sum of its parts, delta lobes included", "[bsdf]") {
+    const auto kd = make_lambertian(make_constant_texture(Color(0.5f, 0.4f, 0.3f)));
+    const auto metal = make_rough_conductor(Color(0.9f, 0.7f, 0.5f), 0.25f);
+    const auto m = make_mixture({kd, metal}, {0.3f, 0.6f});
+    const Vec3 wo = dir(35.f), wi = dir(50.f, 2.5f);
+    CHECK(close(m->eval(wo, wi, kUv), 0.3f * kd->eval(wo, wi, kUv) + 0.6f * metal->eval(wo, wi, kUv)));
+    CHECK(m->pdf(wo, wi, kUv) == Approx((0.3f * kd->pdf(wo, wi, kUv) + 0.6f * metal->pdf(wo, wi, kUv)) / 0.9f));
+    // A blend at weight 0 is its first BSDF, at 1 its second.
+    const auto zero = make_blend(kd, metal, make_constant_texture(Color(0.f)));
+    const auto one = make_blend(kd, metal, make_constant_texture(Color(1.f)));
+    CHECK(close(zero->eval(wo, wi, kUv), kd->eval(wo, wi, kUv)));
+    CHECK(close(one->eval(wo, wi, kUv), metal->eval(wo, wi, kUv)));
+    CHECK(one->pdf(wo, wi, kUv) == Approx(metal->pdf(wo, wi, kUv)));
+    // A mirror beside a diffuse lobe: the albedo through sample() is the
+    // weighted sum of theirs (0.3 x 0.9 + 0.6 x 0.5 = 0.57), and the delta
+    // lobe's sample equals eval_delta's.
+    const auto mirror = make_mirror(Color(0.9f));
+    const auto md = make_mixture({mirror, make_lambertian(make_constant_texture(Color(0.5f)))}, {0.3f, 0.6f});
+    const Albedo a = sampled_albedo(*md, dir(40.f), 40000, 71);
+    CHECK(a.mean.g == Approx(0.57f).margin(4.f * a.stderr_.g + 1e-4f));
+    const auto s = md->sample(wo, kUv, 0.1f, Vec2(0.5f));  // u_lobe 0.1 < 0.3 / 0.9: the mirror
+    REQUIRE(s);
+    REQUIRE(s->is_delta());
+    const auto d = md->eval_delta(wo, s->wi, kUv);
+    REQUIRE(d);
+    CHECK(close(d->f, s->f));
+    CHECK(d->pdf == Approx(s->pdf));
+    CHECK(s->f.g * std::abs(s->wi.z) / s->pdf == Approx(0.9f * 0.3f / (0.3f / 0.9f)));
+    // Two mirrors along the same direction are one lobe: every sample carries both.
+    const auto two = make_mixture({make_mirror(Color(0.8f)), make_mirror(Color(0.4f))}, {0.5f, 0.5f});
+    for (float u : {0.2f, 0.7f}) {
+        const auto t = two->sample(wo, kUv, u, Vec2(0.5f));
+        REQUIRE(t);
+        CHECK(t->f.r * std::abs(t->wi.z) / t->pdf == Approx(0.6f));
+    }
+    CHECK(close(md->albedo(kUv), Color(0.3f * 0.9f + 0.6f * 0.5f)));
+    CHECK_THROWS_AS(make_mixture({kd, metal}, {0.5f}), ParameterError);
+    CHECK_THROWS_AS(make_mixture({kd, metal}, {0.5f, -1.f}), ParameterError);
+    CHECK_THROWS_AS(make_mixture({make_dielectric(1.5f), make_dielectric(1.3f)}, {0.5f, 0.5f}), ParameterError);
 }
 
 TEST_CASE("bsdf chi2: plastic", "[bsdf][statistical]") {

@@ -156,7 +156,7 @@ TEST_CASE("mitsuba: rectangle, cube, sphere and disk are triangulated with outwa
     CHECK(bounds(*d.scene).second.x == Approx(1.f));
 }
 
-TEST_CASE("mitsuba: ext_eta divides a conductor's eta and k, named or given; 'none' stays a perfect mirror",
+TEST_CASE("mitsuba: ext_eta divides a conductor's eta and k, named or given, and 'none' stays a perfect mirror",
           "[mitsuba]") {
     Xml x;
     const float cos_o = 1.f / std::sqrt(1.1f);  // delta_weight's wo

@@ -94,6 +94,30 @@ std::string coated_box(const OutDir& dir, int width) {
     return file;
 }
 
+/// A closed box lit from its ceiling, `width` pixels square: walls of a
+/// diffuse base blended with a mirror by a checkerboard (a delta lobe beside
+/// a smooth one, in varying shares), and a sphere mixing a rough conductor
+/// with a diffuse lobe.
+std::string blend_box(const OutDir& dir, int width) {
+    const std::string file = dir("blend-box.xml");
+    std::ofstream(file, std::ios::binary) << R"XML(<scene version="3.0.0">
+  <sensor type="perspective"><float name="fov" value="90"/>
+    <transform name="to_world"><lookat origin="0, 1, 0.97" target="0, 1, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value=")XML" << width << R"XML("/><integer name="height" value=")XML" << width << R"XML("/></film></sensor>
+  <bsdf type="blendbsdf" id="walls"><texture type="checkerboard" name="weight"><float name="color0" value="0.8"/><float name="color1" value="0.1"/>
+    <transform name="to_uv"><scale x="4" y="4"/></transform></texture>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.7, 0.6, 0.5"/></bsdf><bsdf type="conductor"/></bsdf>
+  <shape type="cube"><transform name="to_world"><scale value="1"/><translate y="1"/></transform><boolean name="flip_normals" value="true"/><ref id="walls"/></shape>
+  <shape type="rectangle"><transform name="to_world"><scale value="0.4"/><rotate x="1" angle="90"/><translate y="1.98"/></transform>
+    <emitter type="area"><rgb name="radiance" value="10"/></emitter></shape>
+  <shape type="sphere"><point name="center" x="0.4" y="0.4" z="0"/><float name="radius" value="0.35"/>
+    <bsdf type="mixturebsdf"><string name="weights" value="0.4, 0.5"/>
+      <bsdf type="roughconductor"><float name="alpha" value="0.2"/></bsdf><bsdf type="diffuse"/></bsdf></shape>
+</scene>
+)XML";
+    return file;
+}
+
 }  // namespace
 
 TEST_CASE("mitsuba bsdf: phong loads strictly with Mitsuba's parameters and defaults", "[mitsuba][phong]") {
@@ -301,6 +325,57 @@ TEST_CASE("mitsuba bsdf: coating loads strictly over reflective BSDFs, and over 
     bool warned = false;
     for (const std::string& w : sf.warnings) warned = warned || w.find("a coating over a transmitting BSDF") != std::string::npos;
     CHECK(warned);
+}
+
+TEST_CASE("mitsuba bsdf: blendbsdf and mixturebsdf load strictly as Mitsuba defines them", "[mitsuba][mixture]") {
+    BsdfScene s;
+    const auto kd = make_lambertian(make_constant_texture(Color(0.6f, 0.4f, 0.2f)));
+    const auto metal = make_rough_conductor(ConductorIor{Color(0.2f, 0.9f, 1.1f), Color(3.9f, 2.5f, 2.1f)}, 0.2f,
+                                            MicrofacetType::Beckmann);
+    const Vec3 wo = dir(30.f), wi = dir(45.f, 2.f);
+    const std::string parts = R"(<bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.4, 0.2"/></bsdf>
+        <bsdf type="roughconductor"><rgb name="eta" value="0.2, 0.9, 1.1"/><rgb name="k" value="3.9, 2.5, 2.1"/>
+        <float name="alpha" value="0.2"/></bsdf>)";
+    const auto blend = s.bsdf(R"(<bsdf type="blendbsdf"><float name="weight" value="0.25"/>)" + parts + "</bsdf>");
+    CHECK(close(blend->eval(wo, wi, kUv), 0.75f * kd->eval(wo, wi, kUv) + 0.25f * metal->eval(wo, wi, kUv)));
+    // Weights summing above 1 are scaled to 1 (ensureEnergyConservation, on by default) ...
+    const auto mix = s.bsdf(R"(<bsdf type="mixturebsdf"><string name="weights" value="0.9, 0.6"/>)" + parts + "</bsdf>");
+    CHECK(close(mix->eval(wo, wi, kUv), 0.6f * kd->eval(wo, wi, kUv) + 0.4f * metal->eval(wo, wi, kUv)));
+    // ... unless it is off.
+    const auto raw = s.bsdf(R"(<bsdf type="mixturebsdf"><string name="weights" value="0.9 0.6"/>
+        <boolean name="ensureEnergyConservation" value="false"/>)" + parts + "</bsdf>");
+    CHECK(close(raw->eval(wo, wi, kUv), 0.9f * kd->eval(wo, wi, kUv) + 0.6f * metal->eval(wo, wi, kUv)));
+    // A textured blend weight, read per uv (gdr's uv (0.75, 0.25) is Mitsuba's (0.75, 0.75): color0).
+    const auto textured = s.bsdf(R"(<bsdf type="blendbsdf"><texture type="checkerboard" name="weight">
+        <float name="color0" value="1"/><float name="color1" value="0"/></texture>)" + parts + "</bsdf>");
+    CHECK(close(textured->eval(wo, wi, Vec2(0.75f, 0.25f)), metal->eval(wo, wi, kUv)));
+    CHECK(close(textured->eval(wo, wi, Vec2(0.25f, 0.25f)), kd->eval(wo, wi, kUv)));
+    // Errors name the element.
+    CHECK_THROWS_WITH(s.load(R"(<bsdf type="blendbsdf"><bsdf type="diffuse"/></bsdf>)"), Catch::Contains("two nested BSDFs"));
+    CHECK_THROWS_WITH(s.load(R"(<bsdf type="mixturebsdf"><string name="weights" value="0.5"/>)" + parts + "</bsdf>"),
+                      Catch::Contains("one weight per nested BSDF"));
+    CHECK_THROWS_WITH(s.load(R"(<bsdf type="mixturebsdf"><string name="weights" value="0.5, x"/>)" + parts + "</bsdf>"),
+                      Catch::Contains("'x' is not a weight"));
+}
+
+TEST_CASE("mitsuba bsdf: every built-in shift passes the validator on a blended scene", "[mitsuba][shift][mixture]") {
+    const OutDir dir{"mitsuba-bsdf-blend"};
+    validate_every_shift(load_scene_file(blend_box(dir, 64)));
+}
+
+TEST_CASE("mitsuba bsdf: gpt is unbiased on a blended box, for every shift", "[mitsuba][gpt][mixture][statistical]") {
+    // As for the coated box: E[dx], E[dy] against pt's differences and the
+    // primal against pt's image, 6 x 6 blocks of 24 x 24 pixels, 16 runs a side.
+    const OutDir dir{"mitsuba-bsdf-blend-gpt"};
+    const SceneFile sf = load_scene_file(blend_box(dir, 24));
+    const int block = 6, runs = 16;
+    const std::vector<FrameBuffer> pt = render_runs(*sf.scene, "pt", Params(), 256, runs, 1000);
+    for (const char* shift : {"half-vector", "replay", "replay-reconnect"}) {
+        INFO("shift " << shift);
+        const std::vector<FrameBuffer> g =
+            render_runs(*sf.scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 64, runs, 1);
+        check_unbiased_gradients(gradient_z(pt, g, block));
+    }
 }
 
 TEST_CASE("mitsuba bsdf: every built-in shift passes the validator on a coated scene", "[mitsuba][shift][coating]") {

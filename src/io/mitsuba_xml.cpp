@@ -1025,7 +1025,49 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         } else {
             b->bsdf = make_coating(inner->bsdf, eta, sigma->mean() * thickness, std::move(spec));
         }
-    } else if (type == "blendbsdf" || type == "roughcoating") {
+    } else if (type == "blendbsdf" || type == "mixturebsdf") {
+        // Every nested BSDF, in order.
+        std::vector<std::shared_ptr<Bsdf>> parts;
+        for (xml_node c : p.objects) {
+            if (std::string(c.name()) != "bsdf" && std::string(c.name()) != "ref") continue;
+            p.used.insert(c.internal_object());
+            const auto part = bsdf(c);
+            if (part->opacity || part->bump || part->normal_map)
+                unsupported(c, "a mask, bump map or normal map inside a " + type, "renders the BSDF without it");
+            parts.push_back(part->bsdf);
+        }
+        if (type == "blendbsdf") {
+            if (parts.size() != 2) fail(n, fmt::format("a blendbsdf blends two nested BSDFs, got {}", parts.size()));
+            b->bsdf = make_blend(parts[0], parts[1], get_texture(p, "weight", Color(0.5f)));
+        } else {
+            if (parts.empty() || parts.size() > 16) fail(n, fmt::format("a mixturebsdf takes 1 to 16 nested BSDFs, got {}", parts.size()));
+            // Mitsuba's "weights": a comma- or space-separated list, one per BSDF.
+            std::vector<float> w;
+            const std::string list = get_string(p, "weights", "");
+            std::string tok;
+            for (size_t i = 0; i <= list.size(); ++i) {
+                const char ch = i < list.size() ? list[i] : ',';
+                if (ch == ',' || ch == ' ' || ch == '\t') {
+                    if (tok.empty()) continue;
+                    float v = 0.f;
+                    const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+                    if (r.ec != std::errc() || r.ptr != tok.data() + tok.size() || !(v >= 0.f) || !std::isfinite(v))
+                        fail(p.named.at("weights"), "'" + tok + "' is not a weight (a number >= 0)");
+                    w.push_back(v), tok.clear();
+                } else {
+                    tok += ch;
+                }
+            }
+            if (w.size() != parts.size())
+                fail(n, fmt::format("a mixturebsdf needs one weight per nested BSDF: {} weights, {} BSDFs", w.size(), parts.size()));
+            // ensureEnergyConservation (default true): weights summing above 1 are scaled to sum to 1.
+            double sum = 0.0;
+            for (float x : w) sum += x;
+            if (get_bool(p, "ensure_energy_conservation", true) && sum > 1.0)
+                for (float& x : w) x = float(x / sum);
+            b->bsdf = make_mixture(std::move(parts), std::move(w));
+        }
+    } else if (type == "roughcoating") {
         unsupported(n, "unsupported BSDF type '" + type + "'", "renders its nested BSDF");
         const auto inner = nested(false);
         if (inner) b->bsdf = inner->bsdf, b->opacity = inner->opacity;

@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "gdr/core/math.h"
 #include "gdr/scene/microfacet.h"
@@ -181,6 +182,18 @@ std::shared_ptr<Bsdf> make_coated_plastic(std::shared_ptr<Texture> kd, const Col
 /// Mitsuba. Two-sided. Throws ParameterError if `nested` transmits.
 std::shared_ptr<Bsdf> make_coating(std::shared_ptr<Bsdf> nested, float eta, const Color& sigma_a_thickness = Color(0.f),
                                    std::shared_ptr<Texture> specular_reflectance = nullptr);
+
+/// A weighted sum of BSDFs, as Mitsuba's `mixturebsdf`: f = sum_k w_k f_k
+/// (weights unitless, >= 0, one per BSDF; 1 to 16 BSDFs), each component
+/// sampled with probability w_k / sum_j w_j. Transmitting components must
+/// share their index of refraction.
+std::shared_ptr<Bsdf> make_mixture(std::vector<std::shared_ptr<Bsdf>> parts, std::vector<float> weights);
+
+/// Two BSDFs blended as Mitsuba's `blendbsdf`: f = (1 - w) f_first + w
+/// f_second, w the average of `weight`'s channels at the hit's uv, clamped
+/// to [0, 1] (unitless).
+std::shared_ptr<Bsdf> make_blend(std::shared_ptr<Bsdf> first, std::shared_ptr<Bsdf> second,
+                                 std::shared_ptr<Texture> weight);
 
 /// Modified Phong reflection as Mitsuba's `phong` (Lafortune and Willems
 /// 1994): f = kd / pi + ks (n + 2) / (2 pi) max(0, wi . reflect(wo))^n, two-sided,
