@@ -1379,12 +1379,14 @@ TEST_CASE("bsdf chi2: coating over diffuse and rough conductor, and a wrong refr
         {"diffuse eta 1.5 absorbing", make_coating(make_lambertian(kd), 1.5f, Color(0.2f, 0.5f, 1.f))},
         {"conductor a=0.3 eta 1.7", make_coating(make_rough_conductor(Color(0.9f, 0.6f, 0.3f), 0.3f), 1.7f)},
         {"diffuse eta 0.8 (total internal reflection)", make_coating(make_lambertian(kd), 0.8f)},
+        {"rough glass 1.33 a=0.3 eta 1.5", make_coating(make_rough_dielectric(1.33f, 0.3f), 1.5f)},
+        {"rough glass 1.33 a=0.3 eta 1.5, from below", make_coating(make_rough_dielectric(1.33f, 0.3f), 1.5f)},
     };
     for (const auto& [label, b] : cases)
         for (float theta : {10.f, 60.f, 85.f}) {
             // From outside, eta 0.8 reflects everything beyond asin(0.8) = 53 degrees: no density to test.
             if (label.find("0.8") != std::string::npos && theta > 50.f) continue;
-            const Vec3 wo = dir(theta);
+            const Vec3 wo = label.find("below") != std::string::npos ? below(dir(theta)) : dir(theta);
             const auto r = coating_chi2_against(*b, wo, [&](const Vec3& wi) { return b->pdf(wo, wi, kUv); });
             INFO(label << " theta_o " << theta << ": " << r.message);
             CHECK(r.passed);
@@ -1442,8 +1444,70 @@ TEST_CASE("bsdf: coating's value, reciprocity, two sides and delta lobe", "[bsdf
         CHECK(close(ms->f, md->f));
         CHECK(ms->pdf == Approx(md->pdf));
     }
-    CHECK_THROWS_AS(make_coating(make_dielectric(1.5f), 1.5f), ParameterError);
 }
+
+// A coated glass, as Mitsuba defines it: light enters the coating, the glass
+// reflects or refracts it, and it leaves through the coating on its own side
+// (in Mitsuba's coating the layer's directions keep their side), so the
+// refraction overall follows the glass's index alone.
+TEST_CASE("bsdf: a coating over a glass refracts by the glass's index, through both interfaces", "[bsdf][coating]") {
+    const float coat = 1.5f, glass = 1.33f;
+    const auto b = make_coating(make_dielectric(glass), coat);
+    CHECK(b->eta() == glass);
+    CHECK(b->flags() & kTransmission);
+    for (float theta : {20.f, 40.f}) {
+        for (bool from_below : {false, true}) {
+            INFO("theta " << theta << (from_below ? " from below" : ""));
+            const Vec3 wo = from_below ? below(dir(theta)) : dir(theta);
+            // The parts: the coating's Fresnel F_c at the outer angle, the
+            // glass's F_g inside the layer (cos' from Snell with 1.5), and
+            // the coating's again where the refracted light leaves.
+            const float c = std::abs(wo.z);
+            float c_in;
+            const float f_c = fresnel_dielectric(c, coat, c_in);
+            const float eta_g = from_below ? 1.f / glass : glass;
+            float c_t;
+            const float f_g = fresnel_dielectric(c_in, eta_g, c_t);
+            const float sin_out = std::sqrt(1.f - c_t * c_t) * coat;
+            const float f_exit = fresnel_dielectric(std::sqrt(1.f - sin_out * sin_out), coat);
+            // Reflection: both delta lobes along the mirror direction.
+            const Vec3 wr(-wo.x, -wo.y, wo.z);
+            const auto r = b->eval_delta(wo, wr, kUv);
+            REQUIRE(r);
+            CHECK(r->f.g * c == Approx(f_c + (1.f - f_c) * (1.f - f_c) * f_g).epsilon(1e-4));
+            // Transmission: Snell's law with the glass's index overall.
+            std::optional<BsdfSample> t;
+            for (float ul = 0.5f; ul < 1.f && !(t && (t->lobe & kTransmission)); ul += 0.01f) t = b->sample(wo, kUv, ul, Vec2(0.5f));
+            REQUIRE(t);
+            REQUIRE((t->lobe & kTransmission));
+            CHECK(t->wi.z * wo.z < 0.f);
+            CHECK(std::hypot(t->wi.x, t->wi.y) == Approx(std::hypot(wo.x, wo.y) / eta_g).epsilon(1e-4));
+            CHECK(t->wi.x * wo.x < 0.f);  // it goes on, not back
+            const auto te = b->eval_delta(wo, t->wi, kUv);
+            REQUIRE(te);
+            CHECK(close(te->f, t->f));
+            CHECK(te->pdf == Approx(t->pdf));
+            // Its share of the light: both coating transmittances times the glass's (radiance: 1 / eta^2).
+            const float share = t->f.g * std::abs(t->wi.z);
+            CHECK(share == Approx((1.f - f_c) * (1.f - f_exit) * (1.f - f_g) / (eta_g * eta_g)).epsilon(1e-3));
+            // All of it, by sampling (the eta^2 undone): reflected plus transmitted.
+            const Albedo a = sampled_albedo(*b, wo, 40000, 81);
+            const float total = f_c + (1.f - f_c) * (1.f - f_c) * f_g + (1.f - f_c) * (1.f - f_exit) * (1.f - f_g);
+            CHECK(a.mean.g == Approx(total).margin(4.f * a.stderr_.g + 1e-4f));
+        }
+    }
+    // From below at 55 degrees the glass's refracted light meets the coating
+    // beyond its critical angle (sin 55 / 1.5 x 1.33 x 1.5 = 1.09): it is
+    // trapped and lost, and only the reflections remain.
+    const Vec3 wo = below(dir(55.f));
+    for (float ul = 0.f; ul < 1.f; ul += 0.05f)
+        if (const auto t = b->sample(wo, kUv, ul, Vec2(0.5f))) CHECK(t->wi.z < 0.f);
+    float c_in;
+    const float f_c = fresnel_dielectric(std::abs(wo.z), coat, c_in), f_g = fresnel_dielectric(c_in, 1.f / glass);
+    const Albedo a = sampled_albedo(*b, wo, 40000, 82);
+    CHECK(a.mean.g == Approx(f_c + (1.f - f_c) * (1.f - f_c) * f_g).margin(4.f * a.stderr_.g + 1e-4f));
+}
+
 
 // Energy: under a uniform sky of radiance 1 the coating reflects F(cos_o); the
 // rest of the sky enters (irradiance pi (1 - Fbar), Fbar the hemispherical mean

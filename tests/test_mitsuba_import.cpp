@@ -4,7 +4,7 @@
 // named in another case is found, the scene's integrator keeps its path
 // length and notes the rest; cylinders, shapegroups and instances; and every
 // shared Mitsuba scene and randomised variant loads strictly unless it lacks
-// a file of its source or coats a transmitting BSDF, and renders without NaN.
+// a file of its source, and renders without NaN.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -237,15 +237,14 @@ TEST_CASE("mitsuba import: every shared Mitsuba scene and variant whose files ar
     REQUIRE(files.size() >= 11);
     // With --lenient, what a strict load rejects becomes a warning ending in
     // "(--lenient)". The only ones allowed: files missing from the scenes'
-    // source, and a `coating` over a transmitting BSDF (glass), which models
-    // no physical layer (docs/scenes.md).
+    // source.
     const auto lenient_only = [](const SceneFile& sf) {
         std::vector<std::string> w;
         for (const std::string& s : sf.warnings)
             if (s.find("(--lenient)") != std::string::npos) w.push_back(s);
         return w;
     };
-    size_t strict = 0, missing = 0, coating = 0;
+    size_t strict = 0, missing = 0;
     std::set<std::string> strict_scenes;
     for (const fs::path& path : files) {
         const std::string rel = path.parent_path().filename().string() + "/" + path.filename().string();
@@ -254,19 +253,16 @@ TEST_CASE("mitsuba import: every shared Mitsuba scene and variant whose files ar
         o.lenient = true;
         SceneFile sf = load_mitsuba_scene(path.string(), o);
         const std::vector<std::string> dropped = lenient_only(sf);
-        bool lacks_file = false, has_coating = false;
+        bool lacks_file = false;
         for (const std::string& w : dropped) {
             INFO(w);
             const bool file = w.find("file not found") != std::string::npos;
-            const bool coat = w.find("a coating over a transmitting BSDF") != std::string::npos;
-            CHECK((file || coat));
+            CHECK(file);
             lacks_file |= file;
-            has_coating |= coat;
         }
         strict += dropped.empty();
         if (dropped.empty() && path.filename() == "scene.xml") strict_scenes.insert(path.parent_path().filename().string());
         missing += lacks_file;
-        coating += has_coating;
         // The scenes themselves: the strict load agrees with the lenient one's
         // warnings, and a failure names the file and line.
         if (path.filename() == "scene.xml") {
@@ -298,8 +294,8 @@ TEST_CASE("mitsuba import: every shared Mitsuba scene and variant whose files ar
         INFO(name);
         if (fs::exists(kSharedMitsuba + "/" + name + "/scene.xml")) CHECK(strict_scenes.count(name) == 1);
     }
-    WARN(fmt::format("shared Mitsuba scenes: {} files, {} load strictly, {} lack a file of the source, {} coat glass",
-                     files.size(), strict, missing, coating));
+    WARN(fmt::format("shared Mitsuba scenes: {} files, {} load strictly, {} lack a file of the source", files.size(),
+                     strict, missing));
 }
 
 TEST_CASE("mitsuba import: an envmap reads Radiance .hdr as linear and 8-bit files by their gamma", "[mitsuba][environment]") {

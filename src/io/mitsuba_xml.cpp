@@ -1017,14 +1017,8 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
         if (!sigma->is_constant()) warn(n, "a textured sigma_a is taken at its mean");
         auto spec = tint_texture(p, "specular_reflectance");
         b->opacity = inner->opacity, b->bump = inner->bump, b->normal_map = inner->normal_map;
-        if (inner->bsdf->flags() & kTransmission) {
-            // Mitsuba refracts such a nested BSDF's transmitted light out through the
-            // coating's own interface again, which models no physical layer.
-            unsupported(n, "a coating over a transmitting BSDF", "renders its nested BSDF");
-            b->bsdf = inner->bsdf;
-        } else {
-            b->bsdf = make_coating(inner->bsdf, eta, sigma->mean() * thickness, std::move(spec));
-        }
+        // Over a glass, what it transmits leaves through a like interface on the other side, as in Mitsuba.
+        b->bsdf = make_coating(inner->bsdf, eta, sigma->mean() * thickness, std::move(spec));
     } else if (type == "blendbsdf" || type == "mixturebsdf") {
         // Every nested BSDF, in order.
         std::vector<std::shared_ptr<Bsdf>> parts;

@@ -179,7 +179,9 @@ std::shared_ptr<Bsdf> make_coated_plastic(std::shared_ptr<Texture> kd, const Col
 /// exp(-sigma_a_thickness (1/cos_o' + 1/cos_i')) (sigma_a times the layer's
 /// thickness, unitless) and refracted out: f = (1 - F_o)(1 - F_i) A f_nested / eta^2.
 /// eta = n_int / n_ext. Light the underside reflects back is lost, as in
-/// Mitsuba. Two-sided. Throws ParameterError if `nested` transmits.
+/// Mitsuba. Directions in the layer keep their side: two-sided over a
+/// reflective BSDF; over a transmitting one (a glass), what it transmits
+/// leaves the other side through a like interface, as in Mitsuba.
 std::shared_ptr<Bsdf> make_coating(std::shared_ptr<Bsdf> nested, float eta, const Color& sigma_a_thickness = Color(0.f),
                                    std::shared_ptr<Texture> specular_reflectance = nullptr);
 

@@ -11,8 +11,13 @@
 // (n^2 law) and its solid angle entering it (eta^2 cos' d omega' = cos d omega)
 // together: irradiance crosses the interface unchanged but for Fresnel. f is
 // reciprocal. Light reflected back down by the interface's underside is lost
-// (as in Mitsuba: the model is single-bounce within the layer). Two-sided like
-// gdr's other reflective BSDFs.
+// (as in Mitsuba: the model is single-bounce within the layer). Directions
+// inside the layer keep the side of the surface they came from, as in
+// Mitsuba, so the coating is two-sided over a two-sided reflective BSDF, and
+// over a transmitting one (a glass) light the nested BSDF sends to the other
+// side leaves through an interface like the coating's there: a coated glass
+// refracts by the glass's own index overall, and its delta transmission
+// carries (1 - F_o)(1 - F_i) A times the glass's.
 #include <algorithm>
 #include <cmath>
 
@@ -39,26 +44,26 @@ public:
 
     std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float u_lobe, const Vec2& u) const override {
         if (wo.z == 0.f) return std::nullopt;
-        const float side = wo.z > 0.f ? 1.f : -1.f;
-        const Vec3 wo_up(wo.x, wo.y, std::abs(wo.z));
-        const float p_spec = specular_probability(wo_up.z);
-        if (u_lobe < p_spec) return mirror_sample(wo_up, side, uv);
+        const float p_spec = specular_probability(std::abs(wo.z));
+        if (u_lobe < p_spec) return mirror_sample(wo, uv);
         float f_o;
         Vec3 wo_in;
-        if (!enter(wo_up, wo_in, f_o)) return std::nullopt;
+        if (!enter(wo, wo_in, f_o)) return std::nullopt;
         const float u_nested = std::min((u_lobe - p_spec) / (1.f - p_spec), 0x1.fffffep-1f);
         const auto ns = nested_->sample(wo_in, uv, u_nested, u);
-        if (!ns || !(ns->wi.z > 0.f)) return std::nullopt;
-        if (ns->is_delta()) return mirror_sample(wo_up, side, uv);  // a nested mirror leaves along the mirror direction
+        if (!ns || ns->wi.z == 0.f) return std::nullopt;
+        const bool reflected = ns->wi.z * wo_in.z > 0.f;
+        if (ns->is_delta() && reflected) return mirror_sample(wo, uv);  // a nested mirror leaves along the mirror direction
         float f_i;
-        Vec3 wi_up;
-        if (!leave(ns->wi, wi_up, f_i)) return std::nullopt;  // trapped by total internal reflection: lost
+        Vec3 wi;
+        if (!leave(ns->wi, wi, f_i)) return std::nullopt;  // trapped by total internal reflection: lost
+        if (ns->is_delta()) return eval_delta(wo, wi, uv);  // the nested glass's refraction, refracted out below
         BsdfSample s;
-        s.wi = Vec3(wi_up.x, wi_up.y, side * wi_up.z);
+        s.wi = wi;
         s.f = transmitted(f_o, f_i, wo_in.z, ns->wi.z) * ns->f;
-        s.pdf = (1.f - p_spec) * ns->pdf * solid_angle_ratio(wi_up.z, ns->wi.z);
+        s.pdf = (1.f - p_spec) * ns->pdf * solid_angle_ratio(wi.z, ns->wi.z);
         if (!(s.pdf > 0.f)) return std::nullopt;
-        s.eta = 1.f;
+        s.eta = ns->eta;
         s.lobe = ns->lobe;
         s.roughness = ns->roughness;
         return s;
@@ -82,21 +87,36 @@ public:
     }
 
     std::optional<BsdfSample> eval_delta(const Vec3& wo, const Vec3& wi, const Vec2& uv) const override {
-        if (wo.z == 0.f || !same_hemisphere(wo, wi)) return std::nullopt;
-        const Vec3 wr(-wo.x, -wo.y, wo.z);
-        if (glm::length(wi - wr) > kDeltaTolerance) return std::nullopt;
-        return mirror_sample(up(wo), wo.z > 0.f ? 1.f : -1.f, uv);
+        if (wo.z == 0.f || wi.z == 0.f) return std::nullopt;
+        if (same_hemisphere(wo, wi)) {
+            const Vec3 wr(-wo.x, -wo.y, wo.z);
+            if (glm::length(wi - wr) > kDeltaTolerance) return std::nullopt;
+            return mirror_sample(wo, uv);
+        }
+        // Through a transmitting nested BSDF's delta lobe, in and out of the layer.
+        const auto r = refracted(wo, wi);
+        if (!r) return std::nullopt;
+        const auto nd = nested_->eval_delta(r->wo, r->wi, uv);
+        if (!nd || !(nd->pdf > 0.f)) return std::nullopt;
+        float f_o, f_i;
+        Vec3 unused;
+        enter(wo, unused, f_o), enter(wi, unused, f_i);
+        BsdfSample s = *nd;
+        s.wi = wi;
+        // f |cos wi| is the lobe's share of the light: the nested one's, nd->f |cos wi'|, through both interfaces.
+        s.f = nd->f * (absorption(r->wo.z, r->wi.z) * ((1.f - f_o) * (1.f - f_i)) * std::abs(r->wi.z) / std::abs(wi.z));
+        s.pdf = (1.f - specular_probability(std::abs(wo.z))) * nd->pdf;
+        return s;
     }
 
     uint32_t flags() const override { return nested_->flags() | kReflection | kSpecular; }
     Color albedo(const Vec2& uv) const override { return nested_->albedo(uv); }
     float min_roughness() const override { return 0.f; }
+    float eta() const override { return nested_->eta(); }  // refracting in and out, the glass's index remains
 
 private:
-    static Vec3 up(const Vec3& w) { return {w.x, w.y, std::abs(w.z)}; }
-
     /// A pair of outside directions seen inside the layer: the refracted
-    /// directions (upper hemisphere), the factor on the nested value
+    /// directions (each on its own side), the factor on the nested value
     /// (transmitted()) and the one on its density (the lobe's selection
     /// probability times d omega' / d omega).
     struct Refracted {
@@ -104,15 +124,17 @@ private:
         Color weight;
         float density;
     };
-    /// nullopt where the coating's smooth part is zero: different sides, a
-    /// grazing direction, or total internal reflection.
+    /// nullopt where the coating's smooth part is zero: different sides over
+    /// a BSDF that does not transmit, a grazing direction, or total internal
+    /// reflection.
     std::optional<Refracted> refracted(const Vec3& wo, const Vec3& wi) const {
-        if (!same_hemisphere(wo, wi) || wo.z == 0.f || wi.z == 0.f) return std::nullopt;
+        if (wo.z == 0.f || wi.z == 0.f) return std::nullopt;
+        if (!same_hemisphere(wo, wi) && !(nested_->flags() & kTransmission)) return std::nullopt;
         Refracted r;
         float f_o, f_i;
-        if (!enter(up(wo), r.wo, f_o) || !enter(up(wi), r.wi, f_i)) return std::nullopt;
+        if (!enter(wo, r.wo, f_o) || !enter(wi, r.wi, f_i)) return std::nullopt;
         r.weight = transmitted(f_o, f_i, r.wo.z, r.wi.z);
-        r.density = (1.f - specular_probability(std::abs(wo.z))) * solid_angle_ratio(std::abs(wi.z), r.wi.z);
+        r.density = (1.f - specular_probability(std::abs(wo.z))) * solid_angle_ratio(wi.z, r.wi.z);
         return r;
     }
 
@@ -123,61 +145,69 @@ private:
         return a + b > 0.f ? a / (a + b) : 0.f;
     }
 
-    /// w (outside, z > 0) refracted into the layer (z > 0, pointing back up);
+    /// w (outside) refracted into the layer, on w's side of the surface;
     /// false on total internal reflection (an index below the outside's).
     bool enter(const Vec3& w, Vec3& w_in, float& fresnel) const {
         float cos_t;
-        fresnel = fresnel_dielectric(w.z, eta_, cos_t);
+        fresnel = fresnel_dielectric(std::abs(w.z), eta_, cos_t);
         if (fresnel >= 1.f || !(cos_t > 0.f)) return false;
-        w_in = Vec3(w.x / eta_, w.y / eta_, cos_t);
+        w_in = Vec3(w.x / eta_, w.y / eta_, w.z > 0.f ? cos_t : -cos_t);
         return true;
     }
 
-    /// w_in (inside, z > 0) refracted out; the Fresnel term is the same
-    /// from either side of the interface for one pair of angles.
+    /// w_in (inside) refracted out, on its side; the Fresnel term is the
+    /// same from either side of the interface for one pair of angles.
     bool leave(const Vec3& w_in, Vec3& w, float& fresnel) const {
         const float sin2 = eta_ * eta_ * std::max(0.f, 1.f - w_in.z * w_in.z);
         if (sin2 >= 1.f) return false;
-        w = Vec3(w_in.x * eta_, w_in.y * eta_, std::sqrt(1.f - sin2));
+        const float c = std::sqrt(1.f - sin2);
+        w = Vec3(w_in.x * eta_, w_in.y * eta_, w_in.z > 0.f ? c : -c);
         float cos_t;
-        fresnel = fresnel_dielectric(w.z, eta_, cos_t);
+        fresnel = fresnel_dielectric(c, eta_, cos_t);
         return fresnel < 1.f;
+    }
+
+    /// The layer's absorption along both refracted segments.
+    Color absorption(float cos_o_in, float cos_i_in) const {
+        return glm::exp(-sigma_ * (1.f / std::abs(cos_o_in) + 1.f / std::abs(cos_i_in)));
     }
 
     /// Both Fresnel transmittances, the absorption along both refracted
     /// segments and the 1 / eta^2 of the file comment.
     Color transmitted(float f_o, float f_i, float cos_o_in, float cos_i_in) const {
-        const Color a = glm::exp(-sigma_ * (1.f / cos_o_in + 1.f / cos_i_in));
-        return a * ((1.f - f_o) * (1.f - f_i) / (eta_ * eta_));
+        return absorption(cos_o_in, cos_i_in) * ((1.f - f_o) * (1.f - f_i) / (eta_ * eta_));
     }
 
-    /// d omega_in / d omega outside, for the density of wi: cos / (eta^2 cos').
-    float solid_angle_ratio(float cos_out, float cos_in) const { return cos_out / (eta_ * eta_ * cos_in); }
+    /// d omega_in / d omega outside, for the density of wi: |cos| / (eta^2 |cos'|).
+    float solid_angle_ratio(float cos_out, float cos_in) const {
+        return std::abs(cos_out) / (eta_ * eta_ * std::abs(cos_in));
+    }
 
     /// The delta lobe along the mirror direction: the interface's reflection,
     /// plus the nested BSDF's own mirror lobe where it has one (refracted in
     /// and out, it leaves along the same direction; the same Fresnel
     /// transmittance both ways), with the probability that sample() produces
     /// that direction by either choice.
-    std::optional<BsdfSample> mirror_sample(const Vec3& wo_up, float side, const Vec2& uv) const {
-        const Vec3 wr(-wo_up.x, -wo_up.y, wo_up.z);
-        const float fresnel = fresnel_dielectric(wo_up.z, eta_);
-        const float p_spec = specular_probability(wo_up.z);
+    std::optional<BsdfSample> mirror_sample(const Vec3& wo, const Vec2& uv) const {
+        const Vec3 wr(-wo.x, -wo.y, wo.z);
+        const float cos_o = std::abs(wo.z);
+        const float fresnel = fresnel_dielectric(cos_o, eta_);
+        const float p_spec = specular_probability(cos_o);
         Color throughput = fresnel * (specular_ ? specular_->eval(uv) : Color(1.f));
         float pdf = p_spec;
         float f_o;
         Vec3 wo_in;
-        if (p_spec < 1.f && enter(wo_up, wo_in, f_o)) {
+        if (p_spec < 1.f && enter(wo, wo_in, f_o)) {
             if (const auto nd = nested_->eval_delta(wo_in, Vec3(-wo_in.x, -wo_in.y, wo_in.z), uv); nd && nd->pdf > 0.f) {
-                const Color a = glm::exp(-sigma_ * (2.f / wo_in.z));
-                throughput += a * ((1.f - f_o) * (1.f - f_o)) * nd->f * wo_in.z;  // nd->f |cos| is its reflectance
+                const Color a = absorption(wo_in.z, wo_in.z);
+                throughput += a * ((1.f - f_o) * (1.f - f_o)) * nd->f * std::abs(wo_in.z);  // nd->f |cos| is its reflectance
                 pdf += (1.f - p_spec) * nd->pdf;
             }
         }
         if (!(pdf > 0.f)) return std::nullopt;
         BsdfSample s;
-        s.wi = Vec3(wr.x, wr.y, side * wr.z);
-        s.f = throughput / wr.z;  // the lobe's value: f |cos| is its reflectance, f |cos| / pdf the sample's weight
+        s.wi = wr;
+        s.f = throughput / cos_o;  // the lobe's value: f |cos| is its reflectance, f |cos| / pdf the sample's weight
         s.pdf = pdf;
         s.eta = 1.f;
         s.lobe = kReflection | kSpecular;
@@ -197,8 +227,6 @@ private:
 std::shared_ptr<Bsdf> make_coating(std::shared_ptr<Bsdf> nested, float eta, const Color& sigma_a_thickness,
                                    std::shared_ptr<Texture> specular_reflectance) {
     if (!nested) throw ParameterError("coating: a nested BSDF is required");
-    if (nested->flags() & kTransmission)
-        throw ParameterError("coating: the nested BSDF transmits; only reflective BSDFs can be coated");
     if (!(eta > 0.f) || !std::isfinite(eta)) throw ParameterError("coating: the relative index must be finite and > 0");
     if (!is_finite(sigma_a_thickness) || sigma_a_thickness.r < 0.f || sigma_a_thickness.g < 0.f ||
         sigma_a_thickness.b < 0.f)
