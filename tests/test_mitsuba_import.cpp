@@ -369,6 +369,18 @@ TEST_CASE("mitsuba import: an EXR bitmap is a linear texture oriented as an 8-bi
                Catch::Contains("scene.xml:6") && Catch::Contains("EXR opacity map"));
 }
 
+TEST_CASE("mitsuba import: subsurface scattering is an error naming it, and --lenient renders the shape without it",
+          "[mitsuba][errors]") {
+    XmlScene s;
+    const std::string body = kRect + "\n" + R"(<shape type="sphere"><subsurface type="dipole"/></shape>)" + "\n" +
+                             R"(<subsurface type="dipole" id="skin"/>)";
+    const std::string e = s.error(body);
+    CHECK_THAT(e, Catch::Contains("scene.xml:7: <subsurface type=\"dipole\">") &&
+                      Catch::Contains("scene.xml:8: <subsurface type=\"dipole\" id=\"skin\">") && Catch::Contains("--lenient"));
+    const SceneFile l = s.load(body, true);
+    CHECK(l.scene->mesh().size() > 2);  // the sphere is there
+}
+
 TEST_CASE("mitsuba import: the sky's stretch and extend light the directions below the horizon", "[mitsuba][sky]") {
     XmlScene s;
     const auto sky = [](const std::string& props) {

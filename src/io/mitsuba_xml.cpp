@@ -550,7 +550,7 @@ Props Importer::props(xml_node owner) {
     static const std::set<std::string> kTags = {"float", "integer", "boolean", "string", "rgb", "srgb", "spectrum",
                                                 "blackbody", "point", "vector", "transform", "texture", "ref", "bsdf",
                                                 "emitter", "sampler", "film", "rfilter", "shape", "medium", "phase",
-                                                "integrator", "sensor", "volume"};
+                                                "integrator", "sensor", "volume", "subsurface"};
     Props p;
     p.owner = owner;
     for (xml_node c : owner.children()) {
@@ -559,7 +559,8 @@ Props Importer::props(xml_node owner) {
         if (!kTags.count(tag)) fail(c, "unknown element <" + tag + ">");
         const bool value_tag = tag != "bsdf" && tag != "emitter" && tag != "sampler" && tag != "film" &&
                                tag != "rfilter" && tag != "shape" && tag != "medium" && tag != "phase" &&
-                               tag != "integrator" && tag != "sensor" && tag != "ref" && tag != "texture";
+                               tag != "integrator" && tag != "sensor" && tag != "ref" && tag != "texture" &&
+                               tag != "subsurface";
         if (c.attribute("name")) {
             const std::string name = snake_case(attr(c, "name"));
             const auto [it, fresh] = p.named.emplace(name, c);
@@ -2045,7 +2046,8 @@ SceneFile Importer::run() {
         else if (tag == "bsdf") bsdf(n);
         else if (tag == "texture") texture(n);
         else if (tag == "emitter") emitter(n);
-        else if (tag == "medium" || tag == "phase" || tag == "volume" || tag == "alias" || tag == "path" || tag == "null")
+        else if (tag == "medium" || tag == "phase" || tag == "volume" || tag == "subsurface" || tag == "alias" ||
+                 tag == "path" || tag == "null")
             unsupported(n, "unsupported element <" + tag + ">", "skips it");
         else fail(n, "unknown element <" + tag + ">");
     }
