@@ -71,8 +71,9 @@ void validate_every_shift(const SceneFile& sf) {
 /// A closed box seen from inside, lit from its ceiling, `width` pixels
 /// square: coated diffuse walls (a delta interface over a diffuse base: base
 /// paths take either lobe, offsets must take the same), a coated rough
-/// conductor sphere, a coated, absorbing Phong sphere and a coated glass
-/// sphere (the glass's refraction through the layer on both sides).
+/// conductor sphere, a coated, absorbing Phong sphere, a coated glass
+/// sphere (the glass's refraction through the layer on both sides) and a
+/// diffuse sphere under a rough coating.
 std::string coated_box(const OutDir& dir, int width) {
     const std::string file = dir("coated-box.xml");
     std::ofstream(file, std::ios::binary) << R"XML(<scene version="3.0.0">
@@ -92,6 +93,9 @@ std::string coated_box(const OutDir& dir, int width) {
     <bsdf type="coating"><bsdf type="roughconductor"><string name="material" value="Cu"/><float name="alpha" value="0.25"/></bsdf></bsdf></shape>
   <shape type="sphere"><point name="center" x="0.1" y="1.2" z="-0.5"/><float name="radius" value="0.25"/>
     <bsdf type="coating"><float name="int_ior" value="1.4"/><bsdf type="dielectric"><float name="int_ior" value="1.33"/></bsdf></bsdf></shape>
+  <shape type="sphere"><point name="center" x="-0.5" y="1.4" z="0.1"/><float name="radius" value="0.2"/>
+    <bsdf type="roughcoating"><float name="alpha" value="0.15"/><rgb name="sigma_a" value="0.3, 0.1, 0.05"/>
+      <bsdf type="diffuse"><rgb name="reflectance" value="0.2, 0.5, 0.8"/></bsdf></bsdf></shape>
 </scene>
 )XML";
     return file;
@@ -374,6 +378,24 @@ TEST_CASE("mitsuba bsdf: gpt is unbiased on a blended box, for every shift", "[m
             render_runs(*sf.scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 64, runs, 1);
         check_unbiased_gradients(gradient_z(pt, g, block));
     }
+}
+
+TEST_CASE("mitsuba bsdf: roughcoating loads strictly with Mitsuba's parameters and defaults", "[mitsuba][coating]") {
+    BsdfScene s;
+    const auto b = s.bsdf(R"(<bsdf type="roughcoating"><float name="intIOR" value="1.7"/><float name="thickness" value="2"/>
+        <rgb name="sigmaA" value="0.1, 0.2, 0.3"/><string name="distribution" value="ggx"/><float name="alpha" value="0.2"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.4, 0.2"/></bsdf></bsdf>)");
+    const auto ref = make_rough_coating(make_lambertian(make_constant_texture(Color(0.6f, 0.4f, 0.2f))), 1.7f / 1.00028f,
+                                        0.2f, MicrofacetType::GGX, Color(0.2f, 0.4f, 0.6f));
+    const Vec3 wo = dir(30.f), wi = dir(50.f, 2.f);
+    CHECK(close(b->eval(wo, wi, kUv), ref->eval(wo, wi, kUv)));
+    CHECK(b->pdf(wo, wi, kUv) == Approx(ref->pdf(wo, wi, kUv)));
+    // Defaults: Beckmann of alpha 0.1, bk7 in air, no absorption.
+    const auto d = s.bsdf(R"(<bsdf type="roughcoating"><bsdf type="diffuse"/></bsdf>)");
+    const auto dref = make_rough_coating(make_lambertian(make_constant_texture(Color(0.5f))), 1.5046f / 1.00028f, 0.1f);
+    CHECK(close(d->eval(wo, wi, kUv), dref->eval(wo, wi, kUv)));
+    CHECK(d->min_roughness() == Approx(0.1f));
+    CHECK_THROWS_WITH(s.load(R"(<bsdf type="roughcoating"/>)"), Catch::Contains("nested"));
 }
 
 TEST_CASE("mitsuba bsdf: every built-in shift passes the validator on a coated scene", "[mitsuba][shift][coating]") {

@@ -1063,12 +1063,19 @@ std::shared_ptr<BuiltBsdf> Importer::build_bsdf(xml_node n) {
             b->bsdf = make_mixture(std::move(parts), std::move(w));
         }
     } else if (type == "roughcoating") {
-        unsupported(n, "unsupported BSDF type '" + type + "'", "renders its nested BSDF");
-        const auto inner = nested(false);
-        if (inner) b->bsdf = inner->bsdf, b->opacity = inner->opacity;
-        else b->bsdf = make_lambertian(make_constant_texture(Color(0.5f)));
-        for (auto& [name, c] : p.named) p.used.insert(c.internal_object());
-        for (xml_node c : p.objects) p.used.insert(c.internal_object());
+        const auto inner = nested(true);
+        const MicrofacetType md = distribution("beckmann");
+        const float alpha = roughness(0.1f);
+        const float int_ior = ior(p, "int_ior", 1.5046f), ext_ior = ior(p, "ext_ior", 1.00028f);
+        if (int_ior == ext_ior) fail(n, "the interior and exterior indices of refraction must differ");
+        const float thickness = scalar_param(p, "thickness", 1.f);
+        if (!(thickness >= 0.f) || !std::isfinite(thickness)) fail(n, "thickness must be finite and >= 0");
+        const auto sigma = get_texture(p, "sigma_a", Color(0.f));
+        if (!sigma->is_constant()) warn(n, "a textured sigma_a is taken at its mean");
+        const auto spec = get_texture(p, "specular_reflectance", Color(1.f));
+        if (!spec->is_constant()) warn(n, "a textured specular_reflectance is taken at its mean");
+        b->opacity = inner->opacity, b->bump = inner->bump, b->normal_map = inner->normal_map;
+        b->bsdf = make_rough_coating(inner->bsdf, int_ior / ext_ior, alpha, md, sigma->mean() * thickness, spec->mean());
     } else {
         unsupported(n, "unsupported BSDF type '" + type + "'", "renders it as diffuse grey 0.5");
         b->bsdf = make_lambertian(make_constant_texture(Color(0.5f)));

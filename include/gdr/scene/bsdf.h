@@ -197,6 +197,19 @@ std::shared_ptr<Bsdf> make_mixture(std::vector<std::shared_ptr<Bsdf>> parts, std
 std::shared_ptr<Bsdf> make_blend(std::shared_ptr<Bsdf> first, std::shared_ptr<Bsdf> second,
                                  std::shared_ptr<Texture> weight);
 
+/// A rough dielectric coating over `nested`, as Mitsuba's `roughcoating`:
+/// the interface reflects specular_reflectance F(wi.h) D G2 / (4 cos_o
+/// cos_i) (microfacets of `type`, roughness alpha), and the nested BSDF is
+/// seen between the directions refracted as through a smooth interface,
+/// times the rough interface's transmittances T(cos_o) T(cos_i), the layer's
+/// absorption exp(-sigma_a_thickness (1/|cos_o'| + 1/|cos_i'|)) and 1/eta^2
+/// (eta = n_int / n_ext, unitless). Light reflected back inside is lost;
+/// directions in the layer keep their side, as in make_coating.
+std::shared_ptr<Bsdf> make_rough_coating(std::shared_ptr<Bsdf> nested, float eta, float alpha,
+                                         MicrofacetType type = MicrofacetType::Beckmann,
+                                         const Color& sigma_a_thickness = Color(0.f),
+                                         const Color& specular_reflectance = Color(1.f));
+
 /// Modified Phong reflection as Mitsuba's `phong` (Lafortune and Willems
 /// 1994): f = kd / pi + ks (n + 2) / (2 pi) max(0, wi . reflect(wo))^n, two-sided,
 /// with kd and ks (unitless textures) scaled together so that the larger channel

@@ -22,10 +22,9 @@
 #include "plastic_lobes.h"
 
 namespace gdr {
-namespace {
 
-/// Cosines at which the coating's transmittance is tabulated (uniform in cos).
-constexpr int kTableSize = 64;
+namespace detail {
+
 /// Quadrature points per axis over the microfacet normals of one cosine.
 constexpr int kQuadrature = 32;
 
@@ -52,6 +51,17 @@ double rough_transmittance(const Microfacet& mf, float eta, float cos_o) {
         }
     return std::clamp(sum / double(kQuadrature * kQuadrature), 0.0, 1.0);
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::rough_transmittance;
+
+/// Cosines at which the coating's transmittance is tabulated (uniform in cos).
+constexpr int kTableSize = 64;
+
+
 
 class CoatedPlastic final : public Bsdf {
 public:

@@ -11,6 +11,12 @@
 
 namespace gdr::detail {
 
+/// Transmittance (unitless, in [0, 1]) of a rough dielectric interface of
+/// relative index eta (far side / near side) and microfacets mf, for light
+/// arriving at cosine cos_o: 1 - F(wo.m) over the normals seen from wo, by a
+/// fixed quadrature (deterministic). Defined in coated_plastic.cpp.
+double rough_transmittance(const Microfacet& mf, float eta, float cos_o);
+
 /// Samples a direction for wo_up (upper hemisphere): the cosine lobe if
 /// `diffuse`, else the mirror of mf's sampled normal, and sets s.lobe and
 /// s.roughness to the lobe's. Nothing where the direction falls below the
