@@ -68,6 +68,20 @@ void validate_every_shift(const SceneFile& sf) {
     }
 }
 
+/// gpt's E[dx], E[dy] against the differences of pt's image, and its primal
+/// against pt's, on a 24 x 24 box scene in 6 x 6 blocks over 16 runs a side,
+/// for the shifts that take delta lobes (check_unbiased_gradients' bounds).
+void check_gpt_unbiased_on_box(const SceneFile& sf) {
+    const int block = 6, runs = 16;
+    const std::vector<FrameBuffer> pt = render_runs(*sf.scene, "pt", Params(), 256, runs, 1000);
+    for (const char* shift : {"half-vector", "replay", "replay-reconnect"}) {
+        INFO("shift " << shift);
+        const std::vector<FrameBuffer> g =
+            render_runs(*sf.scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 64, runs, 1);
+        check_unbiased_gradients(gradient_z(pt, g, block));
+    }
+}
+
 /// A closed box seen from inside, lit from its ceiling, `width` pixels
 /// square: coated diffuse walls (a delta interface over a diffuse base: base
 /// paths take either lobe, offsets must take the same), a coated rough
@@ -369,15 +383,7 @@ TEST_CASE("mitsuba bsdf: gpt is unbiased on a blended box, for every shift", "[m
     // As for the coated box: E[dx], E[dy] against pt's differences and the
     // primal against pt's image, 6 x 6 blocks of 24 x 24 pixels, 16 runs a side.
     const OutDir dir{"mitsuba-bsdf-blend-gpt"};
-    const SceneFile sf = load_scene_file(blend_box(dir, 24));
-    const int block = 6, runs = 16;
-    const std::vector<FrameBuffer> pt = render_runs(*sf.scene, "pt", Params(), 256, runs, 1000);
-    for (const char* shift : {"half-vector", "replay", "replay-reconnect"}) {
-        INFO("shift " << shift);
-        const std::vector<FrameBuffer> g =
-            render_runs(*sf.scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 64, runs, 1);
-        check_unbiased_gradients(gradient_z(pt, g, block));
-    }
+    check_gpt_unbiased_on_box(load_scene_file(blend_box(dir, 24)));
 }
 
 TEST_CASE("mitsuba bsdf: roughcoating loads strictly with Mitsuba's parameters and defaults", "[mitsuba][coating]") {
@@ -411,14 +417,5 @@ TEST_CASE("mitsuba bsdf: gpt is unbiased on a coated box, for every shift", "[mi
     // 6 x 6 blocks of a 24 x 24 frame over 16 runs a side (|z| < 5 for the
     // gradients, 4.5 for the primal; the negated gradients must be rejected).
     const OutDir dir{"mitsuba-bsdf-coating-gpt"};
-    const std::string file = coated_box(dir, 24);
-    const SceneFile sf = load_scene_file(file);
-    const int block = 6, runs = 16;
-    const std::vector<FrameBuffer> pt = render_runs(*sf.scene, "pt", Params(), 256, runs, 1000);
-    for (const char* shift : {"half-vector", "replay", "replay-reconnect"}) {
-        INFO("shift " << shift);
-        const std::vector<FrameBuffer> g =
-            render_runs(*sf.scene, "gpt", params({{"shift", shift}, {"reconstruct", "none"}}), 64, runs, 1);
-        check_unbiased_gradients(gradient_z(pt, g, block));
-    }
+    check_gpt_unbiased_on_box(load_scene_file(coated_box(dir, 24)));
 }
