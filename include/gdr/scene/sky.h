@@ -56,7 +56,7 @@ struct SkyParams {
     float sky_scale = 1.f;           ///< Factor on the sky's radiance (0: no sky).
     float sun_scale = 1.f;           ///< Factor on the sun's radiance (0: no sun).
     /// Factor on the sun's apparent radius (> 0 for a disk in the map; 0
-    /// makes it a directional light, sun_light(), and leaves it out of the map).
+    /// makes it a directional light of sun_irradiance(), left out of the map).
     float sun_radius_scale = 1.f;
     int resolution = 512;            ///< Map width in texels; the height is half of it.
     /// Mitsuba's `stretch`, in [1, 2]: a direction at zenith angle theta shows

@@ -61,8 +61,6 @@ using detail::rough_transmittance;
 /// Cosines at which the coating's transmittance is tabulated (uniform in cos).
 constexpr int kTableSize = 64;
 
-
-
 class CoatedPlastic final : public Bsdf {
 public:
     CoatedPlastic(std::shared_ptr<Texture> kd, const Color& ks, float eta, Microfacet mf, bool nonlinear)

@@ -24,6 +24,7 @@
 #include "gdr/core/error.h"
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/microfacet.h"
+#include "layer_refraction.h"
 
 namespace gdr {
 namespace {
@@ -145,25 +146,19 @@ private:
         return a + b > 0.f ? a / (a + b) : 0.f;
     }
 
-    /// w (outside) refracted into the layer, on w's side of the surface;
-    /// false on total internal reflection (an index below the outside's).
+    /// w (outside) refracted into the layer, and the interface's Fresnel
+    /// reflectance there; false on total internal reflection.
     bool enter(const Vec3& w, Vec3& w_in, float& fresnel) const {
-        float cos_t;
-        fresnel = fresnel_dielectric(std::abs(w.z), eta_, cos_t);
-        if (fresnel >= 1.f || !(cos_t > 0.f)) return false;
-        w_in = Vec3(w.x / eta_, w.y / eta_, w.z > 0.f ? cos_t : -cos_t);
-        return true;
+        if (!detail::refract_into_layer(w, eta_, w_in)) return false;
+        fresnel = fresnel_dielectric(std::abs(w.z), eta_);
+        return fresnel < 1.f;
     }
 
-    /// w_in (inside) refracted out, on its side; the Fresnel term is the
-    /// same from either side of the interface for one pair of angles.
+    /// w_in (inside) refracted out, and the Fresnel term, the same from
+    /// either side of the interface for one pair of angles.
     bool leave(const Vec3& w_in, Vec3& w, float& fresnel) const {
-        const float sin2 = eta_ * eta_ * std::max(0.f, 1.f - w_in.z * w_in.z);
-        if (sin2 >= 1.f) return false;
-        const float c = std::sqrt(1.f - sin2);
-        w = Vec3(w_in.x * eta_, w_in.y * eta_, w_in.z > 0.f ? c : -c);
-        float cos_t;
-        fresnel = fresnel_dielectric(c, eta_, cos_t);
+        if (!detail::refract_out_of_layer(w_in, eta_, w)) return false;
+        fresnel = fresnel_dielectric(std::abs(w.z), eta_);
         return fresnel < 1.f;
     }
 

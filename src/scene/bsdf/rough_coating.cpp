@@ -20,6 +20,7 @@
 #include "gdr/core/error.h"
 #include "gdr/scene/bsdf.h"
 #include "gdr/scene/microfacet.h"
+#include "layer_refraction.h"
 #include "plastic_lobes.h"
 
 namespace gdr {
@@ -57,11 +58,11 @@ public:
             s.eta = 1.f;
         } else {
             Vec3 wo_in;
-            if (!enter(wo, wo_in)) return std::nullopt;
+            if (!detail::refract_into_layer(wo, eta_, wo_in)) return std::nullopt;
             const float u_nested = std::min((u_lobe - p_spec) / (1.f - p_spec), 0x1.fffffep-1f);
             const auto ns = nested_->sample(wo_in, uv, u_nested, u);
             if (!ns || ns->wi.z == 0.f) return std::nullopt;
-            if (!leave(ns->wi, wi)) return std::nullopt;  // trapped by total internal reflection: lost
+            if (!detail::refract_out_of_layer(ns->wi, eta_, wi)) return std::nullopt;  // trapped by total internal reflection: lost
             if (ns->is_delta()) return eval_delta(wo, wi, uv);
             s.lobe = ns->lobe;
             s.roughness = ns->roughness;
@@ -132,29 +133,11 @@ private:
         return a + b > 0.f ? a / (a + b) : 0.f;
     }
 
-    /// w (outside) refracted into the layer as through a smooth interface, on w's side.
-    bool enter(const Vec3& w, Vec3& w_in) const {
-        const float sin2 = std::max(0.f, 1.f - w.z * w.z) / (eta_ * eta_);
-        if (sin2 >= 1.f) return false;
-        const float c = std::sqrt(1.f - sin2);
-        w_in = Vec3(w.x / eta_, w.y / eta_, w.z > 0.f ? c : -c);
-        return true;
-    }
-
-    /// w_in (inside) refracted out, on its side.
-    bool leave(const Vec3& w_in, Vec3& w) const {
-        const float sin2 = eta_ * eta_ * std::max(0.f, 1.f - w_in.z * w_in.z);
-        if (sin2 >= 1.f) return false;
-        const float c = std::sqrt(1.f - sin2);
-        w = Vec3(w_in.x * eta_, w_in.y * eta_, w_in.z > 0.f ? c : -c);
-        return true;
-    }
-
     /// Both directions inside the layer; false where the nested BSDF cannot
     /// connect them (opposite sides without transmission) or one is trapped.
     bool pair_inside(const Vec3& wo, const Vec3& wi, Vec3& wo_in, Vec3& wi_in) const {
         if (!same_hemisphere(wo, wi) && !(nested_->flags() & kTransmission)) return false;
-        return enter(wo, wo_in) && enter(wi, wi_in);
+        return detail::refract_into_layer(wo, eta_, wo_in) && detail::refract_into_layer(wi, eta_, wi_in);
     }
 
     /// The factor on the nested value: both transmittances, the absorption and 1 / eta^2.

@@ -19,7 +19,10 @@ namespace {
 class RoughConductor final : public Bsdf {
 public:
     RoughConductor(const Color& f0, std::optional<ConductorIor> ior, Microfacet mf, std::shared_ptr<Texture> tint)
-        : f0_(ior ? fresnel_conductor(*ior, 1.f) : f0), ior_(ior), mf_(mf), tint_(std::move(tint)) {}
+        : f0_(ior ? fresnel_conductor(*ior, 1.f) : f0), ior_(ior), mf_(mf), tint_(std::move(tint)) {
+        // A constant tint is a factor on every value: kept as a colour, it saves a virtual call per evaluation.
+        if (tint_ && tint_->is_constant()) tint_const_ = tint_->mean(), tint_ = nullptr;
+    }
 
     std::optional<BsdfSample> sample(const Vec3& wo, const Vec2& uv, float, const Vec2& u) const override {
         if (wo.z == 0.f) return std::nullopt;
@@ -58,7 +61,7 @@ public:
     }
 
     uint32_t flags() const override { return kReflection | kGlossy; }
-    Color albedo(const Vec2& uv) const override { return tint_ ? f0_ * tint_->eval(uv) : f0_; }
+    Color albedo(const Vec2& uv) const override { return (tint_ ? f0_ * tint_->eval(uv) : f0_) * tint_const_; }
     float min_roughness() const override { return mf_.alpha; }
 
 private:
@@ -69,13 +72,14 @@ private:
         if (g.value <= 0.f) return Color(0.f);
         const float cos_h = glm::dot(wi_up, g.h);
         const Color f = (ior_ ? fresnel_conductor(*ior_, cos_h) : fresnel_schlick(f0_, cos_h)) * g.value;
-        return tint_ ? f * tint_->eval(uv) : f;
+        return (tint_ ? f * tint_->eval(uv) : f) * tint_const_;
     }
 
     Color f0_;                          // normal-incidence reflectance
     std::optional<ConductorIor> ior_;   // exact Fresnel where given
     Microfacet mf_;
-    std::shared_ptr<Texture> tint_;  // specular reflectance texture; null = 1
+    std::shared_ptr<Texture> tint_;  // specular reflectance texture; null = constant
+    Color tint_const_{1.f};          // the specular reflectance where it is constant
 };
 
 }  // namespace
